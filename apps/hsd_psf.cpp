@@ -1,0 +1,101 @@
+// hsd_psf: a DOE (optics.doe.init) -> the hyperspectral-depth PSF stack.
+// Writes DIR/psf.pt (CONTRACT.md), DIR/psf_atlas.png, DIR/config.json and
+// prints the energy-in-window table and any sampling warnings.
+#include <cstdio>
+
+#include <torch/torch.h>
+
+#include "common/app.h"
+#include "common/atomic_file.h"
+#include "common/log.h"
+#include "common/tensor_io.h"
+#include "optics/doe.h"
+#include "optics/psf.h"
+#include "optics/psf_atlas.h"
+#include "optics/sampling_check.h"
+#include "optics/spectrum.h"
+
+using namespace hsd;
+
+namespace {
+
+const char* kUsage =
+    "hsd_psf --config FILE [--set key=VALUE ...] --out DIR\n"
+    "  Simulates the PSF of the configured DOE for every band (optics.wavelengths_nm)\n"
+    "  and depth (optics.depths_m). Writes DIR/psf.pt, DIR/psf_atlas.png, DIR/config.json.";
+
+void print_energy_table(const torch::Tensor& e, const optics::PsfSpec& spec) {
+  std::string line = "energy in window [%]\n  lambda\\z ";
+  char buf[64];
+  for (double z : spec.depths_m) {
+    std::snprintf(buf, sizeof buf, "%8.3g", z);
+    line += buf;
+  }
+  auto a = e.accessor<double, 2>();
+  for (int64_t l = 0; l < e.size(0); ++l) {
+    std::snprintf(buf, sizeof buf, "\n  %4.0f nm  ", spec.wavelengths_m[size_t(l)] * 1e9);
+    line += buf;
+    for (int64_t z = 0; z < e.size(1); ++z) {
+      std::snprintf(buf, sizeof buf, "%8.1f", 100.0 * a[l][z]);
+      line += buf;
+    }
+  }
+  log::info(line);
+}
+
+int run(const AppArgs& args) {
+  const Config cfg = load_config(args.config_path, args.overrides);
+  setup_threads(cfg.threads);
+  const torch::Device device = resolve_device(cfg.device);
+  make_dirs(args.out_dir);
+
+  const auto material = optics::Material::load(cfg.optics.material);
+  const optics::PsfSpec spec = optics::make_psf_spec(cfg.optics, material, device);
+  optics::Doe doe = optics::make_doe(cfg.optics, material, cfg.seed, device);
+  const torch::Tensor height = doe.height().detach();
+
+  std::string nodes;
+  for (int n : spec.pixel_nodes) nodes += std::to_string(n) + " ";
+  log::info("DOE: " + cfg.optics.doe.init + ", " + std::to_string(spec.doe_samples) + "x" + std::to_string(spec.doe_samples) +
+            " samples, max height " + std::to_string(doe.max_height_m() * 1e6) + " um; pixel quadrature nodes per band: " + nodes);
+
+  const optics::PsfSimulator sim(spec);
+  optics::PsfStack out;
+  {
+    torch::NoGradGuard no_grad;
+    log::Progress progress("PSF", int64_t(spec.wavelengths_m.size()));
+    out = sim.compute(height, {}, [&](int64_t) { progress.step(); });
+  }
+  const torch::Tensor energy = out.energy_in_window.cpu();
+  print_energy_table(energy, spec);
+  const auto report = optics::check_sampling(spec, sim.aperture(), height, energy, cfg.optics.energy_warn_threshold);
+  for (const auto& w : report.warnings) log::warn(w);
+  log::info("largest pupil phase step: " + std::to_string(report.max_phase_step_rad.max().item<double>()) + " rad (limit pi)");
+
+  const torch::Tensor omega = optics::camera_response(cfg.sensor.camera, spec.wavelengths_m, cfg.optics.band_width_m());
+  auto f64 = [](const std::vector<double>& v) { return torch::tensor(v, torch::kFloat64); };
+  auto scalar = [](double v) { return torch::tensor(v, torch::kFloat64); };
+  save_tensor_dict(args.out_dir + "/psf.pt",
+                   {{"psf", out.psf.to(torch::kFloat32)},
+                    {"energy_in_window", energy.to(torch::kFloat32)},
+                    {"wavelengths_m", f64(spec.wavelengths_m)},
+                    {"depths_m", f64(spec.depths_m)},
+                    {"pixel_pitch_m", scalar(spec.pixel_pitch_m)},
+                    {"sensor_distance_m", scalar(spec.sensor_distance_m)},
+                    {"aperture_diameter_m", scalar(spec.aperture_diameter_m)},
+                    {"doe_pitch_m", scalar(spec.doe_pitch_m)},
+                    {"height_map_m", height.to(torch::kFloat32)},
+                    {"refractive_index", f64(spec.refractive_index)},
+                    {"camera_response", omega}});
+  optics::write_psf_atlas(args.out_dir + "/psf_atlas.png", out.psf, spec.wavelengths_m, spec.depths_m);
+  write_resolved_config(cfg, args.out_dir);
+  log::info("wrote " + args.out_dir + "/psf.pt, psf_atlas.png, config.json");
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  AppSpec spec{"hsd_psf", kUsage, {}, {}, true, true};
+  return run_app(spec, argc, argv, run);
+}

@@ -1,0 +1,139 @@
+#include "common/app.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <thread>
+
+#include <torch/torch.h>
+
+#include "common/atomic_file.h"
+#include "common/error.h"
+#include "common/log.h"
+
+namespace hsd {
+
+std::string AppArgs::option(const std::string& flag, const std::string& fallback) const {
+  auto it = options.find(flag);
+  return it == options.end() ? fallback : it->second;
+}
+
+double AppArgs::number(const std::string& flag, double fallback) const {
+  auto it = options.find(flag);
+  if (it == options.end()) return fallback;
+  try {
+    size_t pos = 0;
+    const double v = std::stod(it->second, &pos);
+    if (pos != it->second.size()) throw std::invalid_argument("trailing");
+    return v;
+  } catch (const std::exception&) {
+    input_error(flag, "expected a number, got \"" + it->second + "\"");
+  }
+}
+
+int64_t AppArgs::integer(const std::string& flag, int64_t fallback) const {
+  auto it = options.find(flag);
+  if (it == options.end()) return fallback;
+  try {
+    size_t pos = 0;
+    const long long v = std::stoll(it->second, &pos);
+    if (pos != it->second.size()) throw std::invalid_argument("trailing");
+    return v;
+  } catch (const std::exception&) {
+    input_error(flag, "expected an integer, got \"" + it->second + "\"");
+  }
+}
+
+AppArgs parse_args(const AppSpec& spec, int argc, char** argv) {
+  AppArgs a;
+  auto takes_value = [&](const std::string& f) {
+    return std::find(spec.value_flags.begin(), spec.value_flags.end(), f) != spec.value_flags.end();
+  };
+  auto is_switch = [&](const std::string& f) {
+    return std::find(spec.switch_flags.begin(), spec.switch_flags.end(), f) != spec.switch_flags.end();
+  };
+  for (int i = 1; i < argc; ++i) {
+    std::string f = argv[i];
+    std::string value;
+    bool inline_value = false;
+    if (f.rfind("--", 0) == 0) {
+      const auto eq = f.find('=');
+      if (eq != std::string::npos && f != "--set") {
+        value = f.substr(eq + 1);
+        f = f.substr(0, eq);
+        inline_value = true;
+      }
+    }
+    auto next = [&]() -> std::string {
+      if (inline_value) return value;
+      if (i + 1 >= argc) input_error(f, "needs a value");
+      return argv[++i];
+    };
+    if (f == "--help" || f == "-h") {
+      a.switches["--help"] = true;
+    } else if (f == "--config") {
+      a.config_path = next();
+    } else if (f == "--set") {
+      a.overrides.push_back(next());
+    } else if (f == "--out") {
+      a.out_dir = next();
+    } else if (takes_value(f)) {
+      a.options[f] = next();
+    } else if (is_switch(f)) {
+      a.switches[f] = true;
+    } else if (f.rfind("-", 0) == 0) {
+      input_error(f, "unknown flag (see " + spec.name + " --help)");
+    } else {
+      a.positional.push_back(f);
+    }
+  }
+  if (a.switches.count("--help")) return a;
+  if (spec.needs_config && a.config_path.empty()) input_error("--config", "required (a JSON config file)");
+  if (spec.needs_out && a.out_dir.empty()) input_error("--out", "required (output folder)");
+  return a;
+}
+
+int run_app(const AppSpec& spec, int argc, char** argv, const std::function<int(const AppArgs&)>& body) {
+  try {
+    AppArgs args = parse_args(spec, argc, argv);
+    if (args.switches.count("--help")) {
+      std::printf("%s\n", spec.usage.c_str());
+      return 0;
+    }
+    return body(args);
+  } catch (const InputError& e) {
+    std::fprintf(stderr, "%s: error: %s\n", spec.name.c_str(), e.what());
+    return 2;
+  } catch (const NumericalError& e) {
+    std::fprintf(stderr, "%s: numerical error: %s\n", spec.name.c_str(), e.what());
+    return 3;
+  } catch (const c10::Error& e) {
+    std::fprintf(stderr, "%s: internal error (torch): %s\n", spec.name.c_str(), e.what_without_backtrace());
+    return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "%s: internal error: %s\n", spec.name.c_str(), e.what());
+    return 1;
+  }
+}
+
+int setup_threads(int64_t requested, bool print) {
+  int n = int(requested);
+  if (n <= 0) n = int(std::max(1u, std::thread::hardware_concurrency()));
+  torch::set_num_threads(n);
+  if (print) log::info("threads: " + std::to_string(torch::get_num_threads()));
+  return torch::get_num_threads();
+}
+
+torch::Device resolve_device(const std::string& name) {
+  if (name == "cuda") {
+    if (!torch::cuda::is_available())
+      input_error("config key device", "\"cuda\" requested but this LibTorch build has no usable CUDA device");
+    return torch::Device(torch::kCUDA);
+  }
+  return torch::Device(torch::kCPU);
+}
+
+void write_resolved_config(const Config& cfg, const std::string& out_dir) {
+  write_text_file(out_dir + "/config.json", cfg.resolved.dump(2) + "\n");
+}
+
+}  // namespace hsd

@@ -1,0 +1,53 @@
+// What every hsd app shares: the contract's command-line conventions
+// (--help, --config, --set k=v, --out), thread and device setup, and the
+// mapping of errors to exit codes (0 ok, 1 bug, 2 bad input, 3 numerical).
+#pragma once
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <torch/types.h>
+
+#include "common/config.h"
+
+namespace hsd {
+
+struct AppArgs {
+  std::string config_path;
+  std::vector<std::string> overrides;      // --set values, in order
+  std::string out_dir;
+  std::vector<std::string> positional;     // e.g. hsd_bench NAME
+  std::map<std::string, std::string> options;  // other --flag VALUE pairs
+  std::map<std::string, bool> switches;        // other --flag (no value)
+
+  bool has(const std::string& flag) const { return options.count(flag) || switches.count(flag); }
+  std::string option(const std::string& flag, const std::string& fallback) const;
+  double number(const std::string& flag, double fallback) const;  // InputError if not a number
+  int64_t integer(const std::string& flag, int64_t fallback) const;
+};
+
+struct AppSpec {
+  std::string name;
+  std::string usage;                          // printed by --help
+  std::vector<std::string> value_flags;       // app-specific flags that take a value (e.g. "--scene")
+  std::vector<std::string> switch_flags;      // app-specific flags without a value (e.g. "--json")
+  bool needs_config = true;
+  bool needs_out = true;
+};
+
+// Parses argv per the contract; InputError for unknown flags or missing values.
+AppArgs parse_args(const AppSpec& spec, int argc, char** argv);
+
+// Runs body(args) and maps exceptions to exit codes with one line on stderr.
+int run_app(const AppSpec& spec, int argc, char** argv, const std::function<int(const AppArgs&)>& body);
+
+// Sets torch's intra-op threads (0 = all cores) and prints "threads: N".
+int setup_threads(int64_t requested, bool print = true);
+// "cpu" or "cuda" -> torch::Device; InputError if CUDA is asked for but absent.
+torch::Device resolve_device(const std::string& name);
+
+// Writes DIR/config.json (the fully resolved config) atomically.
+void write_resolved_config(const Config& cfg, const std::string& out_dir);
+
+}  // namespace hsd

@@ -1,0 +1,155 @@
+#include "common/config.h"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "common/error.h"
+
+namespace hsd {
+
+namespace {
+
+std::string num(double v) {
+  std::ostringstream s;
+  s << v;
+  return s.str();
+}
+
+void require_positive(const JsonReader& r, const std::string& key, double v) {
+  if (!(v > 0.0)) r.fail(key, "must be > 0, got " + num(v));
+}
+
+DoeConfig parse_doe(const JsonReader& r) {
+  DoeConfig d;
+  d.init = r.get_string("init", d.init);
+  const bool known = d.init == "flat" || d.init == "fresnel" || d.init == "spiral" ||
+                     d.init == "fisher" || d.init == "random" ||
+                     (d.init.rfind("file:", 0) == 0 && d.init.size() > 5);
+  if (!known)
+    r.fail("init", "expected fresnel, spiral, fisher, flat, random or file:PATH, got \"" + d.init + "\"");
+  d.max_height_m = r.get_number_or_null("max_height_m", d.max_height_m);
+  if (d.max_height_m < 0.0 || d.max_height_m > 1e-3)
+    r.fail("max_height_m", "must be in [0, 1e-3] m (0 = one period at the design wavelength), got " + num(d.max_height_m));
+  d.design_wavelength_m = r.get_number("design_wavelength_m", d.design_wavelength_m);
+  if (!(d.design_wavelength_m >= 100e-9 && d.design_wavelength_m <= 3000e-9))
+    r.fail("design_wavelength_m", "must be in [1e-7, 3e-6] m, got " + num(d.design_wavelength_m));
+  d.design_depth_m = r.get_number_or_null("design_depth_m", d.design_depth_m);
+  if (d.design_depth_m < 0.0) r.fail("design_depth_m", "must be > 0 (or 0 for the middle of depths_m)");
+  d.quantization_levels = r.get_int("quantization_levels", d.quantization_levels);
+  if (d.quantization_levels < 0 || d.quantization_levels == 1 || d.quantization_levels > 65536)
+    r.fail("quantization_levels", "must be 0 (continuous) or in [2, 65536], got " + std::to_string(d.quantization_levels));
+  d.spiral_wings = r.get_int("spiral_wings", d.spiral_wings);
+  if (d.spiral_wings < 1 || d.spiral_wings > 64) r.fail("spiral_wings", "must be in [1, 64]");
+  d.fisher_path = r.get_string("fisher_path", d.fisher_path);
+  return d;
+}
+
+OpticsConfig parse_optics(const JsonReader& r) {
+  OpticsConfig o;
+  o.wavelengths_nm = r.get_number_array("wavelengths_nm");
+  if (o.wavelengths_nm.empty()) r.fail("wavelengths_nm", "must hold at least one band centre");
+  for (size_t i = 0; i < o.wavelengths_nm.size(); ++i) {
+    const double w = o.wavelengths_nm[i];
+    if (!(w >= 100.0 && w <= 3000.0))
+      r.fail("wavelengths_nm", "element " + std::to_string(i) + " = " + num(w) + " nm is outside [100, 3000] nm");
+    if (i > 0 && !(w > o.wavelengths_nm[i - 1])) r.fail("wavelengths_nm", "must be strictly increasing");
+  }
+  o.band_width_nm = r.get_number("band_width_nm", o.band_width_nm);
+  if (o.band_width_nm < 0.0) r.fail("band_width_nm", "must be >= 0 (0 = band spacing)");
+  o.depths_m = r.get_number_array("depths_m");
+  if (o.depths_m.empty()) r.fail("depths_m", "must hold at least one depth");
+  for (size_t i = 0; i < o.depths_m.size(); ++i) {
+    if (!(o.depths_m[i] > 0.0))
+      r.fail("depths_m", "element " + std::to_string(i) + " = " + num(o.depths_m[i]) + " m; depths must be > 0");
+    for (size_t j = 0; j < i; ++j)
+      if (o.depths_m[j] == o.depths_m[i]) r.fail("depths_m", "depths must be distinct");
+  }
+  o.sensor_distance_m = r.get_number("sensor_distance_m");
+  require_positive(r, "sensor_distance_m", o.sensor_distance_m);
+  o.pixel_pitch_m = r.get_number("pixel_pitch_m");
+  require_positive(r, "pixel_pitch_m", o.pixel_pitch_m);
+  o.aperture_diameter_m = r.get_number("aperture_diameter_m");
+  require_positive(r, "aperture_diameter_m", o.aperture_diameter_m);
+  o.aperture_shape = r.get_string("aperture_shape", o.aperture_shape);
+  if (o.aperture_shape != "circle" && o.aperture_shape != "square")
+    r.fail("aperture_shape", "expected \"circle\" or \"square\", got \"" + o.aperture_shape + "\"");
+  o.psf_size = r.get_int("psf_size");
+  if (o.psf_size < 1 || o.psf_size % 2 == 0 || o.psf_size > 4095)
+    r.fail("psf_size", "must be an odd integer in [1, 4095], got " + std::to_string(o.psf_size));
+  o.doe_pitch_m = r.get_number("doe_pitch_m", o.doe_pitch_m);
+  require_positive(r, "doe_pitch_m", o.doe_pitch_m);
+  o.doe_samples = r.get_int("doe_samples", o.doe_samples);
+  if (o.doe_samples < 2 || o.doe_samples > 16384)
+    r.fail("doe_samples", "must be in [2, 16384], got " + std::to_string(o.doe_samples));
+  const double grid = double(o.doe_samples) * o.doe_pitch_m;
+  if (o.aperture_diameter_m > grid * (1.0 + 1e-9))
+    r.fail("aperture_diameter_m", num(o.aperture_diameter_m) + " m is larger than the DOE grid (doe_samples * doe_pitch_m = " +
+                                      num(grid) + " m)");
+  o.material = r.get_string("material", o.material);
+  o.pixel_quadrature_nodes = r.get_int("pixel_quadrature_nodes", o.pixel_quadrature_nodes);
+  if (o.pixel_quadrature_nodes < 0 || o.pixel_quadrature_nodes > 32)
+    r.fail("pixel_quadrature_nodes", "must be in [0, 32] (0 = automatic)");
+  o.pixel_quadrature_tol = r.get_number("pixel_quadrature_tol", o.pixel_quadrature_tol);
+  if (!(o.pixel_quadrature_tol > 0.0 && o.pixel_quadrature_tol < 1.0))
+    r.fail("pixel_quadrature_tol", "must be in (0, 1)");
+  o.precision = r.get_string("precision", o.precision);
+  if (o.precision != "float32" && o.precision != "float64")
+    r.fail("precision", "expected \"float32\" or \"float64\", got \"" + o.precision + "\"");
+  o.energy_warn_threshold = r.get_number("energy_warn_threshold", o.energy_warn_threshold);
+  if (!(o.energy_warn_threshold >= 0.0 && o.energy_warn_threshold <= 1.0))
+    r.fail("energy_warn_threshold", "must be in [0, 1]");
+  if (auto d = r.optional_child("doe")) o.doe = parse_doe(*d);
+  return o;
+}
+
+}  // namespace
+
+std::vector<double> OpticsConfig::wavelengths_m() const {
+  std::vector<double> w;
+  for (double v : wavelengths_nm) w.push_back(v * 1e-9);
+  return w;
+}
+
+double OpticsConfig::band_width_m() const {
+  if (band_width_nm > 0.0) return band_width_nm * 1e-9;
+  if (wavelengths_nm.size() < 2) return 10e-9;
+  return (wavelengths_nm.back() - wavelengths_nm.front()) / double(wavelengths_nm.size() - 1) * 1e-9;
+}
+
+Config parse_config(const Json& resolved) {
+  if (!resolved.is_object()) input_error("config", "must be a JSON object");
+  JsonReader r(resolved);
+  Config c;
+  c.resolved = resolved;
+  const int64_t seed = r.get_int("seed", 0);
+  if (seed < 0) r.fail("seed", "must be >= 0");
+  c.seed = uint64_t(seed);
+  c.device = r.get_string("device", c.device);
+  if (c.device != "cpu" && c.device != "cuda") r.fail("device", "expected \"cpu\" or \"cuda\", got \"" + c.device + "\"");
+  c.threads = r.get_int("threads", c.threads);
+  if (c.threads < 0 || c.threads > 1024) r.fail("threads", "must be in [0, 1024] (0 = all cores)");
+  c.optics = parse_optics(r.child("optics"));
+  if (auto s = r.optional_child("sensor")) {
+    c.sensor.camera = s->get_string("camera", c.sensor.camera);
+    c.sensor.noise_std = s->get_number("noise_std", c.sensor.noise_std);
+    if (c.sensor.noise_std < 0.0) s->fail("noise_std", "must be >= 0 (0 disables noise)");
+  }
+  if (auto t = r.optional_child("train")) {
+    c.train.steps = t->get_int("steps", c.train.steps);
+    if (c.train.steps < 0) t->fail("steps", "must be >= 0");
+    c.train.batch_size = t->get_int("batch_size", c.train.batch_size);
+    if (c.train.batch_size < 1) t->fail("batch_size", "must be >= 1");
+  }
+  if (auto d = r.optional_child("data")) c.data.root = d->get_string("root", c.data.root);
+  r.check_all_used();
+  return c;
+}
+
+Config load_config(const std::string& path, const std::vector<std::string>& overrides) {
+  Json j = load_json_with_extends(path);
+  for (const auto& o : overrides) apply_override(j, o);
+  return parse_config(j);
+}
+
+}  // namespace hsd

@@ -1,0 +1,81 @@
+// Typed, validated experiment configuration. JSON is parsed here, once, at the
+// edge; the libraries below only ever see these structs. Units are in the key
+// names (SI unless the name says otherwise: *_m metres, *_nm nanometres).
+// The keys named in CONTRACT.md keep their meaning; see configs/base.json for
+// every key with its default.
+#pragma once
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "common/json_reader.h"
+
+namespace hsd {
+
+struct DoeConfig {
+  // "flat" | "fresnel" | "spiral" | "fisher" | "random" | "file:PATH"
+  std::string init = "fresnel";
+  // Largest height [m]; 0 means one 2π period at the design wavelength,
+  // design_wavelength_m / (n(design_wavelength_m) - 1).
+  double max_height_m = 0.0;
+  double design_wavelength_m = 550e-9;  // λ0 of the fresnel/spiral families [m]
+  double design_depth_m = 0.0;          // z0 [m]; 0 = middle of depths_m in inverse depth
+  int64_t quantization_levels = 0;      // K height levels (straight-through gradient); 0 = continuous
+  int64_t spiral_wings = 3;             // wings of the spiral (diffracted-rotation) DOE
+  std::string fisher_path = "out/fisher/fisher_height.pt";  // used by init = "fisher"
+};
+
+struct OpticsConfig {
+  std::vector<double> wavelengths_nm;  // band centres [nm], strictly increasing
+  double band_width_nm = 0.0;          // 0 = spacing of wavelengths_nm (10 nm for one band)
+  std::vector<double> depths_m;        // point-source / depth-layer distances from the DOE [m]
+  double sensor_distance_m = 0.05;     // DOE to sensor [m]
+  double pixel_pitch_m = 6.22e-6;      // sensor pixel pitch [m]
+  double aperture_diameter_m = 2.0e-3; // circular (or square side) aperture on the DOE [m]
+  std::string aperture_shape = "circle";  // "circle" | "square"
+  int64_t psf_size = 63;               // odd PSF window [pixels]
+  double doe_pitch_m = 4e-6;           // DOE sample pitch [m]
+  int64_t doe_samples = 512;           // DOE samples across the (square) grid
+  std::string material = "fused_silica_malitson1965";  // key in data/spectra/refractive_index_materials.json
+  int64_t pixel_quadrature_nodes = 0;  // Gauss-Legendre nodes per pixel and axis; 0 = auto per wavelength
+  double pixel_quadrature_tol = 1e-3;  // target error of the auto rule (see optics/pixel_quadrature.h)
+  std::string precision = "float32";   // "float32" | "float64" (phases are always built in float64)
+  double energy_warn_threshold = 0.5;  // warn when energy_in_window of a (λ, z) falls below this
+  DoeConfig doe;
+
+  std::vector<double> wavelengths_m() const;
+  double band_width_m() const;
+};
+
+struct SensorConfig {
+  std::string camera = "canon_5d_mark_iii";  // data/spectra/camera_sensitivity_<camera>.csv
+  double noise_std = 0.0;                    // Gaussian read-noise std (relative); 0 disables noise
+};
+
+struct TrainConfig {
+  int64_t steps = 1000;
+  int64_t batch_size = 4;
+};
+
+struct DataConfig {
+  std::string root = "out/data";
+};
+
+struct Config {
+  uint64_t seed = 0;
+  std::string device = "cpu";  // "cpu" | "cuda"
+  int64_t threads = 0;         // intra-op threads; 0 = all cores
+  OpticsConfig optics;
+  SensorConfig sensor;
+  TrainConfig train;
+  DataConfig data;
+  Json resolved;  // the fully resolved JSON (after extends and --set), written next to outputs
+};
+
+// Parses and validates; InputError naming the key path on any problem,
+// including keys that no part of hsd reads.
+Config parse_config(const Json& resolved);
+// load_json_with_extends(path), apply every "--set" override, parse_config.
+Config load_config(const std::string& path, const std::vector<std::string>& overrides);
+
+}  // namespace hsd

@@ -1,0 +1,30 @@
+// Errors with a meaning for the user.
+//   InputError     : the user's input (config key, flag, file) is wrong -> exit code 2,
+//                    one line that names the key path or file and the reason.
+//   NumericalError : a NaN/Inf or an impossible value appeared inside a computation
+//                    -> exit code 3, naming where it was detected.
+// Anything else that escapes an app is a bug -> exit code 1.
+#pragma once
+#include <stdexcept>
+#include <string>
+
+namespace at { class Tensor; }
+
+namespace hsd {
+
+struct InputError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct NumericalError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+// Throws InputError("<where>: <what>").
+[[noreturn]] void input_error(const std::string& where, const std::string& what);
+
+// Throws NumericalError naming `where` if `t` holds a NaN or an Inf. Cheap enough
+// for per-step checks (one reduction); no-op for non-floating tensors.
+void check_finite(const at::Tensor& t, const std::string& where);
+
+}  // namespace hsd

@@ -1,0 +1,33 @@
+// Console output for apps and long computations: info/warn lines on stderr
+// (stdout stays clean for --json results) and a simple progress bar.
+#pragma once
+#include <chrono>
+#include <string>
+
+namespace hsd::log {
+
+void info(const std::string& msg);
+void warn(const std::string& msg);
+// Number of warnings printed so far (tests use it to check that a warning fired).
+int warning_count();
+// Silence info lines (warnings always print). Used by hsd_bench --json and tests.
+void set_quiet(bool quiet);
+
+// Progress over `total` units of work, printed on stderr at most every 0.5 s and
+// at the end: "label [#####.....] 12/25  3.1 s".
+class Progress {
+ public:
+  Progress(std::string label, long total);
+  void step(long n = 1);
+  void finish();
+  ~Progress();
+
+ private:
+  void print(bool final_line);
+  std::string label_;
+  long total_, done_ = 0;
+  bool finished_ = false;
+  std::chrono::steady_clock::time_point start_, last_;
+};
+
+}  // namespace hsd::log

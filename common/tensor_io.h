@@ -1,0 +1,21 @@
+// .pt files as in CONTRACT.md: torch pickles (torch::pickle_save) of a dict
+// from string to tensor, readable by Python's torch.load. Scalars are stored as
+// 0-dim tensors.
+#pragma once
+#include <map>
+#include <string>
+
+#include <torch/types.h>
+
+namespace hsd {
+
+using TensorDict = std::map<std::string, torch::Tensor>;
+
+// Writes atomically (temp file + rename). Tensors are moved to CPU first.
+void save_tensor_dict(const std::string& path, const TensorDict& dict);
+// InputError naming the file if it is missing, not a torch pickle or not a dict of tensors.
+TensorDict load_tensor_dict(const std::string& path);
+// The entry `key` of a loaded dict; InputError naming file and key if missing.
+torch::Tensor dict_get(const TensorDict& d, const std::string& key, const std::string& file);
+
+}  // namespace hsd

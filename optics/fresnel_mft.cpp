@@ -1,0 +1,55 @@
+#include "optics/fresnel_mft.h"
+
+#include <cmath>
+
+#include <torch/torch.h>
+
+namespace hsd::optics {
+
+torch::Tensor wrap_phase(const torch::Tensor& phase_rad) {
+  return torch::remainder(phase_rad + M_PI, 2.0 * M_PI) - M_PI;
+}
+
+torch::Tensor phasor(const torch::Tensor& phase_rad, c10::ScalarType complex_dtype) {
+  const auto real_dtype = c10::toRealValueType(complex_dtype);
+  const torch::Tensor p = wrap_phase(phase_rad.to(torch::kFloat64)).to(real_dtype);
+  return torch::complex(torch::cos(p), torch::sin(p));
+}
+
+torch::Tensor compute_tilt_kernel(const torch::Tensor& sensor_x_m, const torch::Tensor& pupil_x_m,
+                                  double wavelength_m, double sensor_distance_m, c10::ScalarType complex_dtype) {
+  const double scale = -2.0 * M_PI / (wavelength_m * sensor_distance_m);
+  const torch::Tensor phase = torch::outer(sensor_x_m.to(torch::kFloat64), pupil_x_m.to(torch::kFloat64)) * scale;
+  return phasor(phase, complex_dtype);
+}
+
+torch::Tensor compute_defocus_chirp(const torch::Tensor& pupil_x_m, double wavelength_m, double depth_m,
+                                    double sensor_distance_m, c10::ScalarType complex_dtype) {
+  const double k = 2.0 * M_PI / wavelength_m;
+  const double curvature = 1.0 / depth_m + 1.0 / sensor_distance_m;
+  return phasor(pupil_x_m.to(torch::kFloat64).pow(2) * (0.5 * k * curvature), complex_dtype);
+}
+
+torch::Tensor compute_pupil_field(const torch::Tensor& aperture, const torch::Tensor& height_m,
+                                  double wavelength_m, double refractive_index, c10::ScalarType complex_dtype) {
+  const double k = 2.0 * M_PI / wavelength_m;
+  const torch::Tensor doe_phase = height_m.to(torch::kFloat64) * (k * (refractive_index - 1.0));
+  const auto real_dtype = c10::toRealValueType(complex_dtype);
+  const torch::Tensor p = wrap_phase(doe_phase).to(real_dtype);
+  const torch::Tensor a = aperture.to(real_dtype);
+  return torch::complex(a * torch::cos(p), a * torch::sin(p));
+}
+
+torch::Tensor matrix_fourier_transform(const torch::Tensor& kernels, const torch::Tensor& pupil_field) {
+  const int64_t Z = kernels.size(0), M = kernels.size(1), N = kernels.size(2);
+  // Kᵀ for every z side by side: [N, Z·M]
+  const torch::Tensor kt = kernels.permute({2, 0, 1}).reshape({N, Z * M});
+  const torch::Tensor t = torch::mm(pupil_field, kt).view({N, Z, M}).permute({1, 0, 2});  // [Z, N, M]
+  return torch::bmm(kernels, t);                                                          // [Z, M, M]
+}
+
+torch::Tensor intensity(const torch::Tensor& field) {
+  return torch::view_as_real(field).pow(2).sum(-1);
+}
+
+}  // namespace hsd::optics

@@ -1,0 +1,55 @@
+// Fresnel propagation from the DOE plane to chosen sensor points by a matrix
+// Fourier transform (Soummer et al., Opt. Express 15, 15935 (2007), "Fast
+// computation of Lyot-style coronagraph propagation").
+//
+// The paper's PSF (its "Differentiable Point Spread Function" section):
+//   P_λ,z(x, y) ∝ | ∬ A e^{i k [(ξ²+η²)/(2z) + (η_λ−1) h(ξ,η) + (ξ²+η²)/(2s)]}
+//                    e^{−i 2π (xξ + yη)/(λs)} dξ dη |²
+// The quadratic phases and the Fourier kernel are separable in ξ and η, the DOE
+// term is not. With the 1-D kernel
+//   K_λ,z[m, j] = exp(−i 2π x_m ξ_j/(λs)) · exp(i k ξ_j² (1/z + 1/s)/2)
+// and the pupil field M_λ = A ⊙ exp(i k (η_λ−1) h), the field at sensor points
+// (y_r, x_c) is F = K M Kᵀ (two matrix products), evaluated exactly at the
+// pixel-grid sample positions for every λ: no per-wavelength pitch drift and no
+// resampling. The sum over samples is the midpoint rule for the continuous
+// integral (each DOE sample is one cell of area δ²).
+//
+// Functional layer: pure functions of tensors; PsfSimulator (psf.h) is the thin
+// stateful layer above.
+#pragma once
+#include <torch/types.h>
+
+namespace hsd::optics {
+
+// Wraps a float64 phase to [−π, π) (differentiable, gradient 1).
+torch::Tensor wrap_phase(const torch::Tensor& phase_rad);
+
+// Unit phasor exp(i·phase): phase float64 (any shape) is wrapped, then cast to
+// the real type of `complex_dtype` before cos/sin; returns `complex_dtype`.
+torch::Tensor phasor(const torch::Tensor& phase_rad, c10::ScalarType complex_dtype);
+
+// z-independent part of the kernel: exp(−i 2π x_m ξ_j/(λs)), [M, N] complex.
+// sensor_x_m float64 [M], pupil_x_m float64 [N].
+torch::Tensor compute_tilt_kernel(const torch::Tensor& sensor_x_m, const torch::Tensor& pupil_x_m,
+                                  double wavelength_m, double sensor_distance_m, c10::ScalarType complex_dtype);
+
+// Quadratic phase exp(i k ξ² (1/z + 1/s)/2) on the pupil coordinates, [N] complex:
+// the source's spherical wave and the Fresnel propagator's chirp together.
+torch::Tensor compute_defocus_chirp(const torch::Tensor& pupil_x_m, double wavelength_m, double depth_m,
+                                    double sensor_distance_m, c10::ScalarType complex_dtype);
+
+// Pupil field M = A ⊙ exp(i k (η−1) h): A float64 [N, N] transmission, h [N, N]
+// height in metres (any real dtype, may require grad). The phase is formed in
+// float64 and wrapped before the cast. Returns complex [N, N].
+torch::Tensor compute_pupil_field(const torch::Tensor& aperture, const torch::Tensor& height_m,
+                                  double wavelength_m, double refractive_index, c10::ScalarType complex_dtype);
+
+// F_z = K_z M K_zᵀ for a batch of kernels K [Z, M, N] and one field M [N, N]:
+// returns complex [Z, M, M] (rows y, columns x). One large GEMM for M·Kᵀ over
+// all z, then a batched product.
+torch::Tensor matrix_fourier_transform(const torch::Tensor& kernels, const torch::Tensor& pupil_field);
+
+// Intensity re² + im² of a complex tensor (never complex abs).
+torch::Tensor intensity(const torch::Tensor& field);
+
+}  // namespace hsd::optics

@@ -1,0 +1,73 @@
+// The hyperspectral-depth PSF stack P_λ,z of a DOE (the paper's
+// "Differentiable Point Spread Function", Eq. for P_λ,z; conventions in
+// optics/conventions.h): for every band λ and depth z, the intensity of a
+// point source on the axis, propagated through aperture and DOE to the sensor,
+// integrated over each pixel of an odd P×P window centred on the axis.
+//
+// Method: the Fresnel integral is evaluated at Gauss–Legendre nodes inside each
+// pixel (pixel_quadrature.h) by matrix Fourier transforms (fresnel_mft.h): only
+// the window's pixels are computed, at exactly the sensor pitch for every λ.
+// Differentiable in the height map (autograd through every step).
+#pragma once
+#include <functional>
+#include <string>
+#include <vector>
+
+#include <torch/types.h>
+
+#include "common/config.h"
+#include "optics/material.h"
+
+namespace hsd::optics {
+
+// Everything the PSF depends on apart from the height map. SI units.
+struct PsfSpec {
+  std::vector<double> wavelengths_m;     // [L] band centres
+  std::vector<double> depths_m;          // [Z] source distances from the DOE
+  std::vector<double> refractive_index;  // [L] η of the DOE material at each band centre
+  std::vector<int> pixel_nodes;          // [L] Gauss–Legendre nodes per pixel axis
+  double sensor_distance_m = 0.0;
+  double pixel_pitch_m = 0.0;
+  double aperture_diameter_m = 0.0;
+  std::string aperture_shape = "circle";
+  double doe_pitch_m = 0.0;
+  int64_t doe_samples = 0;  // N
+  int64_t psf_size = 0;     // P (odd)
+  c10::ScalarType real_dtype = torch::kFloat32;
+  torch::Device device = torch::kCPU;
+};
+
+// Builds the spec from the config: indices from the material (warns outside its
+// valid range), pixel nodes per band (fixed, or automatic from
+// pixel_quadrature_tol), dtype from optics.precision.
+PsfSpec make_psf_spec(const OpticsConfig& cfg, const Material& material, torch::Device device);
+
+struct PsfStack {
+  torch::Tensor psf;               // [L, Z', P, P] real_dtype; each [l, z] slice sums to 1
+  torch::Tensor energy_in_window;  // [L, Z'] float64, no grad: fraction of the light through the aperture in the window
+};
+
+class PsfSimulator {
+ public:
+  explicit PsfSimulator(PsfSpec spec);
+
+  // height_m: [N, N] metres (float32 or float64; may require grad).
+  // depth_indices: which of spec.depths_m to compute (empty = all), in that order.
+  // on_band: called after each wavelength (for progress output).
+  PsfStack compute(const torch::Tensor& height_m, const std::vector<int64_t>& depth_indices = {},
+                   const std::function<void(int64_t)>& on_band = {}) const;
+
+  const PsfSpec& spec() const { return spec_; }
+  const torch::Tensor& aperture() const { return aperture_; }  // float64 [N, N]
+  torch::ScalarType complex_dtype() const;
+
+ private:
+  PsfSpec spec_;
+  torch::Tensor aperture_;              // float64 [N, N] on device
+  torch::Tensor pupil_x_;               // float64 [N]
+  std::vector<torch::Tensor> tilt_;     // per band: complex [P·n_l, N]
+  std::vector<torch::Tensor> weights_;  // per band: real [n_l, n_l] (outer product of GL weights)
+  double aperture_energy_ = 0.0;        // Σ A² (δ² units)
+};
+
+}  // namespace hsd::optics
