@@ -38,7 +38,7 @@ struct OpticsConfig {
   int64_t doe_samples = 512;           // DOE samples across the (square) grid
   std::string material = "fused_silica_malitson1965";  // key in data/spectra/refractive_index_materials.json
   int64_t pixel_quadrature_nodes = 0;  // Gauss-Legendre nodes per pixel and axis; 0 = auto per wavelength
-  double pixel_quadrature_tol = 1e-3;  // target error of the auto rule (see optics/pixel_quadrature.h)
+  double pixel_quadrature_tol = 1e-2;  // per-Fourier-component bound of the auto rule (optics/pixel_quadrature.h)
   std::string precision = "float32";   // "float32" | "float64" (phases are always built in float64)
   double energy_warn_threshold = 0.5;  // warn when energy_in_window of a (λ, z) falls below this
   DoeConfig doe;

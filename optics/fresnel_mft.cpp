@@ -42,10 +42,10 @@ torch::Tensor compute_pupil_field(const torch::Tensor& aperture, const torch::Te
 
 torch::Tensor matrix_fourier_transform(const torch::Tensor& kernels, const torch::Tensor& pupil_field) {
   const int64_t Z = kernels.size(0), M = kernels.size(1), N = kernels.size(2);
-  // Kᵀ for every z side by side: [N, Z·M]
-  const torch::Tensor kt = kernels.permute({2, 0, 1}).reshape({N, Z * M});
-  const torch::Tensor t = torch::mm(pupil_field, kt).view({N, Z, M}).permute({1, 0, 2});  // [Z, N, M]
-  return torch::bmm(kernels, t);                                                          // [Z, M, M]
+  // B_z = K_z M for every z in one GEMM ([Z·M, N] x [N, N]); then F_z = B_z K_zᵀ.
+  // Only `kernels` (no grad) is kept for the backward pass; no copies of it are made.
+  const torch::Tensor b = torch::mm(kernels.reshape({Z * M, N}), pupil_field).view({Z, M, N});
+  return torch::bmm(b, kernels.transpose(1, 2));  // [Z, M, M]
 }
 
 torch::Tensor intensity(const torch::Tensor& field) {

@@ -45,7 +45,7 @@ torch::Tensor compute_pupil_field(const torch::Tensor& aperture, const torch::Te
                                   double wavelength_m, double refractive_index, c10::ScalarType complex_dtype);
 
 // F_z = K_z M K_zᵀ for a batch of kernels K [Z, M, N] and one field M [N, N]:
-// returns complex [Z, M, M] (rows y, columns x). One large GEMM for M·Kᵀ over
+// returns complex [Z, M, M] (rows y, columns x). One large GEMM for K·M over
 // all z, then a batched product.
 torch::Tensor matrix_fourier_transform(const torch::Tensor& kernels, const torch::Tensor& pupil_field);
 

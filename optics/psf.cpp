@@ -79,6 +79,7 @@ PsfStack PsfSimulator::compute(const torch::Tensor& height_m, const std::vector<
   const int64_t Z = int64_t(zi.size());
   const auto cdt = complex_dtype();
   const torch::Tensor h = height_m.to(s.device);
+  check_finite(h, "DOE height map (input of the PSF simulator)");
 
   std::vector<torch::Tensor> psfs, energies;
   for (size_t l = 0; l < s.wavelengths_m.size(); ++l) {

@@ -1,0 +1,21 @@
+// Timing and memory measurement for hsd_bench.
+#pragma once
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace hsd::bench {
+
+// Runs f `repeats` times (after one untimed warm-up if warmup) and returns the median seconds.
+double median_seconds(const std::function<void()>& f, int repeats, bool warmup = true);
+
+// Peak resident memory of this process since the last reset_peak_rss(), MiB
+// (Linux VmHWM; reset through /proc/self/clear_refs).
+void reset_peak_rss();
+double peak_rss_mib();
+double current_rss_mib();
+
+// Runs f and returns the peak RSS (MiB) reached while it ran.
+double peak_rss_during(const std::function<void()>& f);
+
+}  // namespace hsd::bench

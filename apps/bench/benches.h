@@ -1,0 +1,17 @@
+// The benchmarks of hsd_bench, one function each.
+#pragma once
+#include <string>
+
+#include "common/app.h"
+#include "common/config.h"
+
+namespace hsd::bench {
+
+struct BenchOutput {
+  Json json;         // printed (exactly one object) with --json
+  std::string text;  // printed otherwise
+};
+
+int bench_psf(const Config& cfg, const AppArgs& args, BenchOutput& out);
+
+}  // namespace hsd::bench

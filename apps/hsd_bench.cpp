@@ -1,0 +1,48 @@
+// hsd_bench NAME [--json] [--config FILE] [--set k=v] [--threads N] ...
+// Performance figures, measured side by side in one run, with the thread count.
+// With --json, stdout holds exactly one JSON object (logs go to stderr).
+#include <cstdio>
+
+#include <torch/torch.h>
+
+#include "bench/benches.h"
+#include "common/app.h"
+#include "common/build_info.h"
+#include "common/error.h"
+#include "common/log.h"
+
+using namespace hsd;
+
+namespace {
+const char* kUsage =
+    "hsd_bench NAME [--json] [--config FILE] [--set key=VALUE ...] [--threads N] [--repeats K]\n"
+    "  NAME: psf   time, peak memory and accuracy of the config's whole PSF stack\n"
+    "              (forward, forward+backward), with the FFT+bilinear baseline\n"
+    "              and point-sampled pixels side by side (--no-baseline skips it)\n"
+    "  --config defaults to configs/paper.json of the source tree.\n"
+    "  --json prints exactly one JSON object on stdout.";
+
+int run(const AppArgs& args) {
+  if (args.positional.size() != 1) input_error("hsd_bench", "expected one benchmark NAME (see --help)");
+  const std::string name = args.positional[0];
+  const bool json = args.has("--json");
+  if (json) log::set_quiet(true);
+  const std::string config = args.config_path.empty() ? std::string(HSD_SOURCE_DIR) + "/configs/paper.json" : args.config_path;
+  Config cfg = load_config(config, args.overrides);
+  setup_threads(args.integer("--threads", cfg.threads), !json);
+  bench::BenchOutput out;
+  int rc = 0;
+  if (name == "psf") rc = bench::bench_psf(cfg, args, out);
+  else input_error("hsd_bench " + name, "unknown benchmark (known: psf)");
+  out.json["hsd_version"] = HSD_VERSION;
+  out.json["config"] = config;
+  if (json) std::printf("%s\n", out.json.dump().c_str());
+  else std::printf("%s", out.text.c_str());
+  return rc;
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  AppSpec spec{"hsd_bench", kUsage, {"--threads", "--repeats"}, {"--json", "--no-baseline"}, false, false};
+  return run_app(spec, argc, argv, run);
+}

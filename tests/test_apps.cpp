@@ -1,0 +1,86 @@
+// The apps as a user runs them: exit codes, one-line errors, the contract's
+// output files, and no partial files.
+#include <catch2/catch.hpp>
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <sys/wait.h>
+
+#include "common/tensor_io.h"
+#include "helpers.h"
+
+using namespace hsd;
+namespace fs = std::filesystem;
+
+namespace {
+struct Run {
+  int code;
+  std::string err;
+};
+Run run(const std::string& args) {
+  const auto errfile = fs::temp_directory_path() / "hsd_test_app_stderr.txt";
+  const std::string cmd = "cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) + "/" + args +
+                          " > /dev/null 2> " + errfile.string();
+  const int status = std::system(cmd.c_str());
+  std::string err;
+  if (FILE* f = std::fopen(errfile.c_str(), "r")) {
+    std::array<char, 4096> buf{};
+    size_t n;
+    while ((n = std::fread(buf.data(), 1, buf.size(), f)) > 0) err.append(buf.data(), n);
+    std::fclose(f);
+  }
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, err};
+}
+int lines(const std::string& s) { return int(std::count(s.begin(), s.end(), '\n')); }
+}  // namespace
+
+TEST_CASE("hsd_psf writes the contract's psf.pt and atlas and config", "[app]") {
+  const fs::path out = fs::temp_directory_path() / "hsd_test_psf_out";
+  fs::remove_all(out);
+  const Run r = run("hsd_psf --config configs/tiny.json --set optics.doe.init=spiral --out " + out.string());
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  CHECK(fs::exists(out / "psf_atlas.png"));
+  CHECK(fs::exists(out / "config.json"));
+  const TensorDict d = load_tensor_dict((out / "psf.pt").string());
+  const torch::Tensor psf = d.at("psf");
+  CHECK(psf.scalar_type() == torch::kFloat32);
+  CHECK(psf.sizes() == torch::IntArrayRef({3, 2, 15, 15}));
+  CHECK((psf.sum({2, 3}) - 1.0).abs().max().item<double>() < 1e-5);
+  CHECK(d.at("energy_in_window").sizes() == torch::IntArrayRef({3, 2}));
+  CHECK(d.at("wavelengths_m").scalar_type() == torch::kFloat64);
+  CHECK(d.at("wavelengths_m")[1].item<double>() == Approx(550e-9));
+  CHECK(d.at("depths_m").sizes() == torch::IntArrayRef({2}));
+  CHECK(d.at("height_map_m").sizes() == torch::IntArrayRef({64, 64}));
+  CHECK(d.at("camera_response").sizes() == torch::IntArrayRef({3, 3}));
+  CHECK(d.at("refractive_index").sizes() == torch::IntArrayRef({3}));
+  for (const char* k : {"pixel_pitch_m", "sensor_distance_m", "aperture_diameter_m", "doe_pitch_m"}) {
+    CHECK(d.at(k).scalar_type() == torch::kFloat64);
+    CHECK(d.at(k).dim() == 0);
+  }
+  for (const auto& e : fs::directory_iterator(out)) CHECK(e.path().string().find(".tmp") == std::string::npos);
+}
+
+TEST_CASE("bad input is exit 2 with one line naming the key or file", "[app]") {
+  const std::string out = (fs::temp_directory_path() / "hsd_test_bad_out").string();
+  Run r = run("hsd_psf --config configs/tiny.json --set optics.psf_size=4 --out " + out);
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("optics.psf_size"));
+  CHECK(lines(r.err) == 1);
+  r = run("hsd_psf --config configs/tiny.json --set optics.colour=1 --out " + out);
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("optics.colour"));
+  r = run("hsd_psf --config nonexistent.json --out " + out);
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("nonexistent.json"));
+  r = run("hsd_psf --config configs/tiny.json");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--out"));
+  r = run("hsd_psf --config configs/tiny.json --bogus --out " + out);
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--bogus"));
+  r = run("hsd_psf --config configs/tiny.json --set optics.doe.init=file:/nonexistent.pt --out " + out);
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("/nonexistent.pt"));
+  CHECK(run("hsd_psf --help").code == 0);
+}

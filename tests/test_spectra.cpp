@@ -1,0 +1,65 @@
+// Spectral tables, band integration and dispersion formulas against the
+// tabulated values that came with them.
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "common/error.h"
+#include "optics/material.h"
+#include "optics/spectrum.h"
+
+using namespace hsd;
+using namespace hsd::optics;
+
+TEST_CASE("dispersion formulas reproduce the tabulated indices", "[material]") {
+  std::ifstream f(spectra_path("refractive_index_materials.json"));
+  const auto j = nlohmann::json::parse(f);
+  const SpectralTable table = SpectralTable::load_csv(spectra_path("refractive_index_visible.csv"));
+  int compared = 0;
+  for (auto it = j["materials"].begin(); it != j["materials"].end(); ++it) {
+    const Material m = Material::load(it.key());
+    CHECK(m.index(587.56e-9) == Approx(it.value()["n_at_587.56nm"].get<double>()).margin(2e-6));
+    for (double nm = 380; nm <= 780; nm += 5) {
+      const double t = table.value(it.key(), nm);
+      if (t == 0.0) continue;  // empty cell: outside the formula's range
+      INFO(it.key() << " at " << nm << " nm");
+      CHECK(m.index(nm * 1e-9) == Approx(t).margin(1.5e-6));
+      CHECK(m.in_valid_range(nm * 1e-9));
+      ++compared;
+    }
+  }
+  CHECK(compared > 300);
+  CHECK_THROWS_WITH(Material::load("unobtainium"), Catch::Contains("optics.material"));
+}
+
+TEST_CASE("band means integrate the piecewise-linear table exactly", "[spectrum]") {
+  const SpectralTable cam = SpectralTable::load_csv(spectra_path("camera_sensitivity_canon_5d_mark_iii.csv"));
+  // Within one 5 nm table interval the curve is linear: the band mean is the centre value.
+  CHECK(cam.band_mean("g", 551.0, 554.0) == Approx(cam.value("g", 552.5)).epsilon(1e-12));
+  // Over two intervals: exact trapezoids.
+  const double expected = 0.5 * (0.5 * (cam.value("g", 545) + cam.value("g", 550)) + 0.5 * (cam.value("g", 550) + cam.value("g", 555)));
+  CHECK(cam.band_mean("g", 545.0, 555.0) == Approx(expected).epsilon(1e-12));
+  // Outside the table the curve is zero.
+  CHECK(cam.band_mean("g", 370.0, 380.0) == 0.0);
+}
+
+TEST_CASE("camera response is 3 x L and non-negative with the expected dominant channels", "[spectrum]") {
+  std::vector<double> w;
+  for (int i = 0; i < 25; ++i) w.push_back((420 + 10 * i) * 1e-9);
+  const torch::Tensor omega = camera_response("canon_5d_mark_iii", w, 10e-9);
+  REQUIRE(omega.sizes() == torch::IntArrayRef({3, 25}));
+  CHECK(omega.min().item<double>() >= 0.0);
+  CHECK(omega[1][13].item<double>() > omega[0][13].item<double>());  // 550 nm: G > R
+  CHECK(omega[1][13].item<double>() > omega[2][13].item<double>());  // 550 nm: G > B
+  CHECK(omega[2][3].item<double>() > omega[0][3].item<double>());    // 450 nm: B > R
+  CHECK(omega[0][22].item<double>() > omega[2][22].item<double>());  // 640 nm: R > B
+  CHECK_THROWS_AS(camera_response("box_camera", w, 10e-9), InputError);
+}
+
+TEST_CASE("display colours follow the spectrum", "[spectrum]") {
+  const auto blue = wavelength_display_rgb(450e-9), green = wavelength_display_rgb(530e-9), red = wavelength_display_rgb(640e-9);
+  CHECK(blue[2] == 1.0);
+  CHECK(green[1] == 1.0);
+  CHECK(red[0] == 1.0);
+}
