@@ -96,6 +96,9 @@ OpticsConfig parse_optics(const JsonReader& r) {
   o.precision = r.get_string("precision", o.precision);
   if (o.precision != "float32" && o.precision != "float64")
     r.fail("precision", "expected \"float32\" or \"float64\", got \"" + o.precision + "\"");
+  o.psf_backward = r.get_string("psf_backward", o.psf_backward);
+  if (o.psf_backward != "store" && o.psf_backward != "recompute")
+    r.fail("psf_backward", "expected \"store\" or \"recompute\", got \"" + o.psf_backward + "\"");
   o.energy_warn_threshold = r.get_number("energy_warn_threshold", o.energy_warn_threshold);
   if (!(o.energy_warn_threshold >= 0.0 && o.energy_warn_threshold <= 1.0))
     r.fail("energy_warn_threshold", "must be in [0, 1]");

@@ -40,6 +40,9 @@ struct OpticsConfig {
   int64_t pixel_quadrature_nodes = 0;  // Gauss-Legendre nodes per pixel and axis; 0 = auto per wavelength
   double pixel_quadrature_tol = 1e-2;  // per-Fourier-component bound of the auto rule (optics/pixel_quadrature.h)
   std::string precision = "float32";   // "float32" | "float64" (phases are always built in float64)
+  // "store": autograd keeps every band's intermediates (fastest); "recompute":
+  // keep only the height map and recompute each band in the backward pass (lean).
+  std::string psf_backward = "store";
   double energy_warn_threshold = 0.5;  // warn when energy_in_window of a (λ, z) falls below this
   DoeConfig doe;
 

@@ -25,6 +25,7 @@ PsfSpec make_psf_spec(const OpticsConfig& cfg, const Material& material, torch::
   s.psf_size = cfg.psf_size;
   s.real_dtype = cfg.precision == "float64" ? torch::kFloat64 : torch::kFloat32;
   s.device = device;
+  s.recompute_in_backward = cfg.psf_backward == "recompute";
   for (double w : s.wavelengths_m) {
     if (cfg.pixel_quadrature_nodes > 0) {
       s.pixel_nodes.push_back(int(cfg.pixel_quadrature_nodes));
@@ -64,10 +65,126 @@ PsfSimulator::PsfSimulator(PsfSpec spec) : spec_(std::move(spec)) {
   }
 }
 
+namespace {
+
+// Everything one band's PSF needs, by value (tensors are shared, not copied), so
+// a recomputation in the backward pass does not depend on the simulator object
+// still being alive.
+struct BandContext {
+  torch::Tensor aperture, tilt, weights, pupil_x;
+  double wavelength_m = 0, refractive_index = 0, sensor_distance_m = 0, pixel_pitch_m = 0, doe_pitch_m = 0,
+         aperture_energy = 0;
+  int64_t psf_size = 0, nodes = 0;
+  c10::ScalarType complex_dtype = torch::kComplexFloat;
+  std::vector<double> depths_m;
+
+  void save(torch::autograd::AutogradContext* ctx) const {
+    auto& d = ctx->saved_data;
+    d["aperture"] = aperture;
+    d["tilt"] = tilt;
+    d["weights"] = weights;
+    d["pupil_x"] = pupil_x;
+    d["scalars"] = c10::List<double>({wavelength_m, refractive_index, sensor_distance_m, pixel_pitch_m, doe_pitch_m,
+                                      aperture_energy});
+    d["ints"] = c10::List<int64_t>({psf_size, nodes, int64_t(complex_dtype)});
+    d["depths"] = c10::List<double>(depths_m);
+  }
+  static BandContext load(torch::autograd::AutogradContext* ctx) {
+    auto& d = ctx->saved_data;
+    BandContext b;
+    b.aperture = d["aperture"].toTensor();
+    b.tilt = d["tilt"].toTensor();
+    b.weights = d["weights"].toTensor();
+    b.pupil_x = d["pupil_x"].toTensor();
+    const auto sc = d["scalars"].toDoubleVector();
+    b.wavelength_m = sc[0], b.refractive_index = sc[1], b.sensor_distance_m = sc[2], b.pixel_pitch_m = sc[3],
+    b.doe_pitch_m = sc[4], b.aperture_energy = sc[5];
+    const auto in = d["ints"].toIntVector();
+    b.psf_size = in[0], b.nodes = in[1], b.complex_dtype = c10::ScalarType(in[2]);
+    b.depths_m = d["depths"].toDoubleVector();
+    return b;
+  }
+};
+
+// One band: normalised PSFs [Z, P, P] and energy_in_window [Z] (no grad).
+std::pair<torch::Tensor, torch::Tensor> band_psf(const BandContext& b, const torch::Tensor& h) {
+  const int64_t N = b.pupil_x.size(0), P = b.psf_size, n = b.nodes, Z = int64_t(b.depths_m.size());
+  const torch::Tensor field = compute_pupil_field(b.aperture, h, b.wavelength_m, b.refractive_index, b.complex_dtype);
+  std::vector<torch::Tensor> kz;
+  for (double z : b.depths_m) {
+    const torch::Tensor chirp = compute_defocus_chirp(b.pupil_x, b.wavelength_m, z, b.sensor_distance_m, b.complex_dtype);
+    kz.push_back(b.tilt * chirp.view({1, N}));  // [P·n, N]
+  }
+  const torch::Tensor kernels = torch::stack(kz);                               // [Z, P·n, N]
+  const torch::Tensor I = intensity(matrix_fourier_transform(kernels, field));  // [Z, P·n, P·n]
+  // Pixel integral: Gauss–Legendre weights over each pixel's n×n nodes.
+  const torch::Tensor pix = (I.view({Z, P, n, P, n}) * b.weights.view({1, 1, n, 1, n})).sum({2, 4});  // [Z, P, P]
+  const torch::Tensor total = pix.sum({1, 2});                                  // [Z]
+  // Energy bookkeeping (Parseval): window energy / energy through the aperture.
+  //   window = p² Σ_pix I_pix · δ⁴/(λs)²,  aperture = δ² Σ A²
+  const double scale =
+      std::pow(b.pixel_pitch_m * b.doe_pitch_m / (b.wavelength_m * b.sensor_distance_m), 2) / b.aperture_energy;
+  const torch::Tensor energy = total.detach().to(torch::kFloat64) * scale;
+  const torch::Tensor psf = pix / total.clamp_min(std::numeric_limits<float>::min()).view({Z, 1, 1});
+  return {psf, energy};
+}
+
+// Checkpointed band: forward without a graph; backward recomputes the band
+// with a graph and differentiates it. Stores the height map and shared constants.
+struct RecomputedBand : public torch::autograd::Function<RecomputedBand> {
+  static torch::autograd::variable_list forward(torch::autograd::AutogradContext* ctx, torch::Tensor height,
+                                                const BandContext& band) {
+    ctx->save_for_backward({height});
+    band.save(ctx);
+    torch::Tensor psf, energy;
+    {
+      torch::NoGradGuard no_grad;
+      std::tie(psf, energy) = band_psf(band, height);
+    }
+    ctx->mark_non_differentiable({energy});
+    return {psf, energy};
+  }
+  static torch::autograd::variable_list backward(torch::autograd::AutogradContext* ctx,
+                                                 torch::autograd::variable_list grads) {
+    const BandContext band = BandContext::load(ctx);
+    const torch::Tensor h = ctx->get_saved_variables()[0].detach().requires_grad_(true);
+    torch::Tensor g;
+    {
+      torch::AutoGradMode enable(true);
+      const torch::Tensor psf = band_psf(band, h).first;
+      g = torch::autograd::grad({psf}, {h}, {grads[0]})[0];
+    }
+    return {g, torch::Tensor()};
+  }
+};
+
+BandContext make_band_context(const PsfSpec& s, const torch::Tensor& aperture, const torch::Tensor& tilt,
+                              const torch::Tensor& weights, const torch::Tensor& pupil_x, double aperture_energy,
+                              c10::ScalarType cdt, size_t l, const std::vector<int64_t>& zi) {
+  BandContext b;
+  b.aperture = aperture, b.tilt = tilt, b.weights = weights, b.pupil_x = pupil_x;
+  b.wavelength_m = s.wavelengths_m[l], b.refractive_index = s.refractive_index[l];
+  b.sensor_distance_m = s.sensor_distance_m, b.pixel_pitch_m = s.pixel_pitch_m, b.doe_pitch_m = s.doe_pitch_m;
+  b.aperture_energy = aperture_energy;
+  b.psf_size = s.psf_size, b.nodes = s.pixel_nodes[l], b.complex_dtype = cdt;
+  for (int64_t z : zi) b.depths_m.push_back(s.depths_m[size_t(z)]);
+  return b;
+}
+
+}  // namespace
+
+std::pair<torch::Tensor, torch::Tensor> PsfSimulator::compute_band(int64_t band, const torch::Tensor& h,
+                                                                   const std::vector<int64_t>& zi) const {
+  const size_t l = size_t(band);
+  return band_psf(make_band_context(spec_, aperture_, tilt_[l], weights_[l], pupil_x_, aperture_energy_,
+                                    complex_dtype(), l, zi),
+                  h);
+}
+
 PsfStack PsfSimulator::compute(const torch::Tensor& height_m, const std::vector<int64_t>& depth_indices,
                                const std::function<void(int64_t)>& on_band) const {
   const auto& s = spec_;
-  const int64_t N = s.doe_samples, P = s.psf_size;
+  const int64_t N = s.doe_samples;
   if (height_m.dim() != 2 || height_m.size(0) != N || height_m.size(1) != N)
     throw InputError("PSF: height map must be [" + std::to_string(N) + ", " + std::to_string(N) + "], got " +
                      c10::str(height_m.sizes()));
@@ -76,35 +193,27 @@ PsfStack PsfSimulator::compute(const torch::Tensor& height_m, const std::vector<
     for (int64_t z = 0; z < int64_t(s.depths_m.size()); ++z) zi.push_back(z);
   for (int64_t z : zi)
     if (z < 0 || z >= int64_t(s.depths_m.size())) throw InputError("PSF: depth index out of range");
-  const int64_t Z = int64_t(zi.size());
-  const auto cdt = complex_dtype();
   const torch::Tensor h = height_m.to(s.device);
   check_finite(h, "DOE height map (input of the PSF simulator)");
+  const bool checkpoint = s.recompute_in_backward && h.requires_grad() && torch::GradMode::is_enabled();
 
   std::vector<torch::Tensor> psfs, energies;
-  for (size_t l = 0; l < s.wavelengths_m.size(); ++l) {
-    const double lambda = s.wavelengths_m[l];
-    const int64_t n = s.pixel_nodes[l];
-    const torch::Tensor field = compute_pupil_field(aperture_, h, lambda, s.refractive_index[l], cdt);  // [N, N]
-    std::vector<torch::Tensor> kz;
-    for (int64_t z : zi) {
-      const torch::Tensor chirp = compute_defocus_chirp(pupil_x_, lambda, s.depths_m[size_t(z)], s.sensor_distance_m, cdt);
-      kz.push_back(tilt_[l] * chirp.view({1, N}));  // [P·n, N]
+  for (int64_t l = 0; l < int64_t(s.wavelengths_m.size()); ++l) {
+    torch::Tensor psf, energy;
+    if (checkpoint) {
+      const auto r = RecomputedBand::apply(h, make_band_context(spec_, aperture_, tilt_[size_t(l)], weights_[size_t(l)],
+                                                                pupil_x_, aperture_energy_, complex_dtype(), size_t(l), zi));
+      psf = r[0];
+      energy = r[1];
+    } else {
+      std::tie(psf, energy) = compute_band(l, h, zi);
     }
-    const torch::Tensor kernels = torch::stack(kz);                                    // [Z, P·n, N]
-    const torch::Tensor I = intensity(matrix_fourier_transform(kernels, field));       // [Z, P·n, P·n]
-    // Pixel integral: Gauss–Legendre weights over each pixel's n×n nodes.
-    const torch::Tensor pix = (I.view({Z, P, n, P, n}) * weights_[l].view({1, 1, n, 1, n})).sum({2, 4});  // [Z, P, P]
-    const torch::Tensor total = pix.sum({1, 2});                                       // [Z]
-    // Energy bookkeeping (Parseval): window energy / energy through the aperture.
-    //   window = p² Σ_pix I_pix · δ⁴/(λs)²,  aperture = δ² Σ A²
-    const double scale = std::pow(s.pixel_pitch_m * s.doe_pitch_m / (lambda * s.sensor_distance_m), 2) / aperture_energy_;
-    energies.push_back(total.detach().to(torch::kFloat64) * scale);
-    psfs.push_back(pix / total.clamp_min(std::numeric_limits<float>::min()).view({Z, 1, 1}));
-    if (on_band) on_band(int64_t(l));
+    psfs.push_back(psf);
+    energies.push_back(energy);
+    if (on_band) on_band(l);
   }
   PsfStack out;
-  out.psf = torch::stack(psfs);                 // [L, Z, P, P]
+  out.psf = torch::stack(psfs);                   // [L, Z, P, P]
   out.energy_in_window = torch::stack(energies);  // [L, Z]
   check_finite(out.psf, "PSF stack");
   return out;

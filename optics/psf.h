@@ -35,6 +35,10 @@ struct PsfSpec {
   int64_t psf_size = 0;     // P (odd)
   c10::ScalarType real_dtype = torch::kFloat32;
   torch::Device device = torch::kCPU;
+  // false: autograd stores every band's intermediate tensors (fastest);
+  // true: only the height map is stored and each band is recomputed in the
+  // backward pass (about 1.5x the time of forward+backward, a fraction of the memory).
+  bool recompute_in_backward = false;
 };
 
 // Builds the spec from the config: indices from the material (warns outside its
@@ -56,6 +60,10 @@ class PsfSimulator {
   // on_band: called after each wavelength (for progress output).
   PsfStack compute(const torch::Tensor& height_m, const std::vector<int64_t>& depth_indices = {},
                    const std::function<void(int64_t)>& on_band = {}) const;
+
+  // One band: normalised PSFs [Z', P, P] and energy_in_window [Z'] (no grad).
+  std::pair<torch::Tensor, torch::Tensor> compute_band(int64_t band, const torch::Tensor& height_m,
+                                                       const std::vector<int64_t>& depth_indices) const;
 
   const PsfSpec& spec() const { return spec_; }
   const torch::Tensor& aperture() const { return aperture_; }  // float64 [N, N]

@@ -5,7 +5,7 @@
 set -euo pipefail
 PKGS=(build-essential cmake ninja-build
       libtorch-dev libopencv-dev libopenexr-dev nlohmann-json3-dev catch2 libgloo-dev
-      libopenblas0-pthread)
+      libopenblas0-pthread python3-torch)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -59,6 +59,20 @@ TEST_CASE("hsd_psf writes the contract's psf.pt and atlas and config", "[app]") 
     CHECK(d.at(k).dim() == 0);
   }
   for (const auto& e : fs::directory_iterator(out)) CHECK(e.path().string().find(".tmp") == std::string::npos);
+
+  // Python reads it with torch.load (python3-torch from Debian, installed by scripts/setup.sh).
+  const std::string py = "/usr/bin/python3 -c \"import torch; d = torch.load('" + (out / "psf.pt").string() +
+                         "'); p = d['psf']; assert tuple(p.shape) == (3, 2, 15, 15), p.shape; "
+                         "assert abs(float(p.sum((2, 3)).min()) - 1) < 1e-5; "
+                         "assert d['wavelengths_m'].dtype == torch.float64; print('ok')\" 2>&1";
+  std::string got;
+  if (FILE* f = popen(py.c_str(), "r")) {
+    char buf[512];
+    while (fgets(buf, sizeof buf, f)) got += buf;
+    pclose(f);
+  }
+  INFO("python3 said: " << got << " (needs python3-torch: bash scripts/setup.sh)");
+  CHECK(got.find("ok") != std::string::npos);
 }
 
 TEST_CASE("bad input is exit 2 with one line naming the key or file", "[app]") {

@@ -75,3 +75,21 @@ TEST_CASE("float32 and float64 gradients agree", "[psf][gradient]") {
   INFO("relative difference float32 vs float64 gradient: " << rel);
   CHECK(rel < 1e-4);
 }
+
+// The simulator is a temporary here: the recomputation must not depend on it
+// outliving the forward pass.
+TEST_CASE("recomputing bands in the backward pass gives the same gradient", "[psf][gradient]") {
+  const int64_t N = 24, P = 7;
+  const torch::Tensor h0 = optics::random_height(N, 1.2e-6, 4);
+  torch::Tensor grads[2];
+  for (int k = 0; k < 2; ++k) {
+    auto spec = test::make_spec({450e-9, 650e-9}, {0.5, 1.5}, N, 8e-6, 0.18e-3, P, 8e-6, 0.03, 3);
+    spec.recompute_in_backward = (k == 1);
+    torch::Tensor h = h0.clone().set_requires_grad(true);
+    const auto out = optics::PsfSimulator(spec).compute(h);
+    (out.psf.pow(2).sum() + out.psf.select(2, 1).sum()).backward();
+    grads[k] = h.grad();
+  }
+  CHECK(grads[0].abs().max().item<double>() > 0.0);
+  CHECK(torch::allclose(grads[0], grads[1], 1e-10, 1e-14));
+}
