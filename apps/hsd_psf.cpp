@@ -68,9 +68,10 @@ int run(const AppArgs& args) {
   }
   const torch::Tensor energy = out.energy_in_window.cpu();
   print_energy_table(energy, spec);
-  const auto report = optics::check_sampling(spec, sim.aperture(), height, energy, cfg.optics.energy_warn_threshold);
+  const auto report = optics::check_sampling(spec, energy, cfg.optics.energy_warn_threshold);
   for (const auto& w : report.warnings) log::warn(w);
-  log::info("largest pupil phase step: " + std::to_string(report.max_phase_step_rad.max().item<double>()) + " rad (limit pi)");
+  log::info("largest phase step of the sampled chirps: " + std::to_string(report.max_phase_step_rad.max().item<double>()) +
+            " rad per DOE sample (limit pi)");
 
   const torch::Tensor omega = optics::camera_response(cfg.sensor.camera, spec.wavelengths_m, cfg.optics.band_width_m());
   auto f64 = [](const std::vector<double>& v) { return torch::tensor(v, torch::kFloat64); };

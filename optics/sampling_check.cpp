@@ -5,8 +5,6 @@
 
 #include <torch/torch.h>
 
-#include "optics/aperture.h"
-#include "optics/fresnel_mft.h"
 
 namespace hsd::optics {
 
@@ -18,35 +16,21 @@ std::string fmt(const char* f, double a, double b = 0, double c = 0, double d = 
 }
 }  // namespace
 
-SamplingReport check_sampling(const PsfSpec& spec, const torch::Tensor& aperture, const torch::Tensor& height_m,
-                              const torch::Tensor& energy_in_window, double energy_warn_threshold) {
+SamplingReport check_sampling(const PsfSpec& spec, const torch::Tensor& energy_in_window, double energy_warn_threshold) {
   SamplingReport r;
   const int64_t L = int64_t(spec.wavelengths_m.size()), Z = int64_t(spec.depths_m.size());
   r.max_phase_step_rad = torch::zeros({L, Z}, torch::kFloat64);
   const double delta = spec.doe_pitch_m, s = spec.sensor_distance_m;
-  const torch::Tensor A = aperture.detach().cpu().to(torch::kFloat64);
-  const torch::Tensor h = height_m.detach().cpu().to(torch::kFloat64);
-  const torch::Tensor x = centred_coordinates(spec.doe_samples, delta);
-  // Neighbour pairs that both carry light.
-  const torch::Tensor lit = A > 0;
-  const torch::Tensor pair_x = lit.narrow(1, 0, lit.size(1) - 1) & lit.narrow(1, 1, lit.size(1) - 1);
-  const torch::Tensor pair_y = lit.narrow(0, 0, lit.size(0) - 1) & lit.narrow(0, 1, lit.size(0) - 1);
-  // ξ_{j+1}² − ξ_j² along x (depends on the column), same along y (row).
-  const torch::Tensor dx2 = (x.narrow(0, 1, x.size(0) - 1).pow(2) - x.narrow(0, 0, x.size(0) - 1).pow(2));
+  // Largest |ξ| of a lit sample along an axis: the aperture's half width (plus the edge cell).
+  const double half_width = std::min(0.5 * spec.aperture_diameter_m + 0.5 * delta, 0.5 * double(spec.doe_samples) * delta);
   const double window_edge = 0.5 * double(spec.psf_size) * spec.pixel_pitch_m;
   auto acc = r.max_phase_step_rad.accessor<double, 2>();
   for (int64_t l = 0; l < L; ++l) {
     const double lam = spec.wavelengths_m[size_t(l)];
     const double k = 2.0 * M_PI / lam;
-    const torch::Tensor phi = h * (k * (spec.refractive_index[size_t(l)] - 1.0));
-    const torch::Tensor dphi_x = wrap_phase(phi.narrow(1, 1, phi.size(1) - 1) - phi.narrow(1, 0, phi.size(1) - 1));
-    const torch::Tensor dphi_y = wrap_phase(phi.narrow(0, 1, phi.size(0) - 1) - phi.narrow(0, 0, phi.size(0) - 1));
-    const double tilt = k * delta * window_edge / s;
     for (int64_t z = 0; z < Z; ++z) {
-      const double c = 0.5 * k * (1.0 / spec.depths_m[size_t(z)] + 1.0 / s);
-      const torch::Tensor sx = (dphi_x + (dx2 * c).view({1, -1})).abs().masked_fill(~pair_x, 0.0);
-      const torch::Tensor sy = (dphi_y + (dx2 * c).view({-1, 1})).abs().masked_fill(~pair_y, 0.0);
-      const double step = std::max(sx.max().item<double>(), sy.max().item<double>()) + tilt;
+      const double curvature = std::fabs(1.0 / spec.depths_m[size_t(z)] + 1.0 / s);
+      const double step = k * delta * (half_width * curvature + window_edge / s);
       acc[l][z] = step;
       if (step > M_PI)
         r.warnings.push_back(fmt("pupil undersampled at lambda = %.0f nm, z = %.4g m: phase step %.2f rad between "

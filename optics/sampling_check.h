@@ -1,8 +1,11 @@
 // Checks that the discretisation can represent the physics, with numbers:
-//  * pupil sampling: the largest phase step between neighbouring DOE samples of
-//    the integrand (source and propagation chirps, the DOE phase modulo 2π, and
-//    the tilt toward the window's edge pixels) must stay below π, or the
-//    midpoint rule aliases;
+//  * pupil sampling: each DOE sample is a cell of constant height, so what the
+//    sampling must resolve is the smooth part of the integrand, the source and
+//    propagation chirps plus the tilt toward the window's edge pixels. Its
+//    largest step between neighbouring samples, k δ (D/2 · |1/z + 1/s| + x_edge/s),
+//    must stay below π, or the midpoint rule aliases. (The DOE's own steps,
+//    including genuine discontinuities such as the spiral's wing edges, are the
+//    element's design, not a sampling error.)
 //  * DOE-grid period: the sampled pupil repeats the PSF every λs/δ on the sensor;
 //    that period must exceed the window;
 //  * energy_in_window below a threshold: the window misses light.
@@ -23,8 +26,7 @@ struct SamplingReport {
   std::vector<std::string> warnings;
 };
 
-// height_m [N, N]; energy_in_window [L, Z] (may be undefined to skip that check).
-SamplingReport check_sampling(const PsfSpec& spec, const torch::Tensor& aperture, const torch::Tensor& height_m,
-                              const torch::Tensor& energy_in_window, double energy_warn_threshold);
+// energy_in_window [L, Z] (may be undefined to skip that check).
+SamplingReport check_sampling(const PsfSpec& spec, const torch::Tensor& energy_in_window, double energy_warn_threshold);
 
 }  // namespace hsd::optics

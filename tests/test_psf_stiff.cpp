@@ -35,7 +35,7 @@ TEST_CASE("a source very close to the DOE is finite and flagged as undersampled"
   const torch::Tensor h = torch::zeros({N, N}, torch::kFloat64);
   const auto out = sim.compute(h);
   REQUIRE(finite_and_normalised(out));
-  const auto rep = optics::check_sampling(spec, sim.aperture(), h, out.energy_in_window, 0.5);
+  const auto rep = optics::check_sampling(spec, out.energy_in_window, 0.5);
   CHECK(rep.max_phase_step_rad[0][0].item<double>() > M_PI);   // 2 mm: undersampled, and said so
   CHECK(rep.max_phase_step_rad[0][1].item<double>() < M_PI);   // 0.5 m: fine
   bool named = false;
@@ -93,4 +93,18 @@ TEST_CASE("bad PSF inputs are refused with a message", "[psf][stiff]") {
   auto even = spec;
   even.psf_size = 4;
   CHECK_THROWS_AS(optics::PsfSimulator(even), InputError);
+}
+
+TEST_CASE("the paper geometry is adequately sampled and the check follows its closed form", "[psf][stiff]") {
+  const Config cfg = load_config(test::source_path("configs/paper.json"), {});
+  const auto spec = optics::make_psf_spec(cfg.optics, optics::Material::load(cfg.optics.material), torch::kCPU);
+  const auto rep = optics::check_sampling(spec, torch::Tensor(), 0.5);
+  CHECK(rep.warnings.empty());
+  // k δ (D/2 · (1/z + 1/s) + x_edge/s) at 420 nm and the nearest depth, with D/2 + δ/2
+  const double k = 2 * M_PI / 420e-9, d = cfg.optics.doe_pitch_m;
+  const double expected = k * d * ((0.5 * cfg.optics.aperture_diameter_m + 0.5 * d) * (1.0 / 0.4 + 1.0 / 0.05) +
+                                   0.5 * cfg.optics.psf_size * cfg.optics.pixel_pitch_m / 0.05);
+  CHECK(rep.max_phase_step_rad.max().item<double>() == Approx(expected).epsilon(1e-9));
+  CHECK(rep.max_phase_step_rad.max().item<double>() < M_PI);
+  for (double period : rep.period_pixels) CHECK(period > double(cfg.optics.psf_size));
 }
