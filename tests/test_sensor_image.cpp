@@ -1,0 +1,125 @@
+// Sensor image formation J_c = Σ_z M_z ⊙ Σ_λ Ω_c,λ (I_λ ⊗ P_λ,z): impulse
+// response, fast path vs the straightforward one (with and without leave-out),
+// uniform scenes without border darkening, bad depth maps, and the gradient
+// from the image back to the DOE height map.
+#include <catch2/catch.hpp>
+#include <cmath>
+
+#include "common/error.h"
+#include "helpers.h"
+#include "optics/doe.h"
+#include "optics/sensor_image.h"
+
+using namespace hsd;
+
+namespace {
+torch::Tensor random_psf(int64_t L, int64_t Z, int64_t P, uint64_t seed) {
+  auto gen = at::detail::createCPUGenerator(seed);
+  torch::Tensor p = torch::rand({L, Z, P, P}, gen, torch::kFloat64);
+  return p / p.sum({2, 3}, true);
+}
+}  // namespace
+
+TEST_CASE("sensor: an impulse at one layer's depth reproduces the PSFs weighted by the camera response", "[sensor]") {
+  const int64_t L = 4, Z = 3, P = 7, H = 21, W = 25;
+  const std::vector<double> depths{0.5, 1.0, 2.0};
+  const torch::Tensor psf = random_psf(L, Z, P, 1);
+  const torch::Tensor omega = torch::rand({3, L}, torch::kFloat64);
+  for (int64_t z = 0; z < Z; ++z) {
+    torch::Tensor I = torch::zeros({1, L, H, W}, torch::kFloat64);
+    I.select(2, 10).select(2, 12).fill_(1.0);  // all bands, pixel (10, 12)
+    const torch::Tensor depth = torch::full({1, 1, H, W}, depths[size_t(z)], torch::kFloat64);
+    const torch::Tensor masks = optics::layer_masks(depth, depths, 0.0);
+    const torch::Tensor J = optics::render_sensor_image(I, masks, psf, omega);
+    const torch::Tensor expected = torch::einsum("cl,lhw->chw", {omega, psf.select(1, z)});  // [3, P, P]
+    const torch::Tensor got = J[0].narrow(1, 10 - P / 2, P).narrow(2, 12 - P / 2, P);
+    CHECK((got - expected).abs().max().item<double>() < 1e-12);
+    CHECK(J.sum().item<double>() == Approx(expected.sum().item<double>()).epsilon(1e-12));
+  }
+}
+
+TEST_CASE("sensor: fast path equals the straightforward one with and without leave-out", "[sensor]") {
+  const int64_t L = 5, Z = 4, P = 9, H = 32, W = 28, B = 2;
+  const std::vector<double> depths{0.4, 0.6, 1.0, 2.0};
+  torch::manual_seed(0);
+  const torch::Tensor psf = random_psf(L, Z, P, 2).to(torch::kFloat32);
+  torch::Tensor omega = torch::rand({3, L});
+  omega.select(1, 2).zero_();  // a band the camera does not see: left out
+  const torch::Tensor I = torch::rand({B, L, H, W});
+  // Depth: two of the four layers occupied.
+  torch::Tensor depth = torch::full({B, 1, H, W}, 0.4);
+  depth.narrow(3, W / 2, W / 2).fill_(1.0);
+  REQUIRE(optics::occupied_layers(depth, depths) == std::vector<int64_t>{0, 2});
+  const torch::Tensor masks = optics::layer_masks(depth, depths, 1.5);
+  const torch::Tensor direct = optics::render_sensor_image_direct(I, masks, psf, omega);
+  const torch::Tensor fast = optics::render_sensor_image(I, masks, psf, omega, true);
+  const torch::Tensor full = optics::render_sensor_image(I, masks, psf, omega, false);
+  const double scale = direct.abs().max().item<double>();
+  CHECK((fast - direct).abs().max().item<double>() < 1e-5 * scale);
+  CHECK((full - direct).abs().max().item<double>() < 1e-5 * scale);
+  // random depths over all layers
+  const torch::Tensor depth2 = 0.35 + 2.0 * torch::rand({B, 1, H, W});
+  const torch::Tensor masks2 = optics::layer_masks(depth2, depths, 0.8);
+  const torch::Tensor d2 = optics::render_sensor_image_direct(I, masks2, psf, omega);
+  CHECK((optics::render_sensor_image(I, masks2, psf, omega) - d2).abs().max().item<double>() <
+        1e-5 * d2.abs().max().item<double>());
+}
+
+TEST_CASE("sensor: a uniform scene stays uniform up to the borders", "[sensor]") {
+  const int64_t L = 3, Z = 2, P = 11, H = 24, W = 24;
+  const std::vector<double> depths{0.5, 1.5};
+  const torch::Tensor psf = random_psf(L, Z, P, 3);
+  const torch::Tensor omega = torch::rand({3, L}, torch::kFloat64);
+  const torch::Tensor I = torch::full({1, L, H, W}, 0.7, torch::kFloat64);
+  torch::Tensor depth = torch::full({1, 1, H, W}, 0.5, torch::kFloat64);
+  depth.narrow(2, 0, H / 2).fill_(1.5);
+  const torch::Tensor J = optics::render_sensor_image(I, optics::layer_masks(depth, depths, 2.0), psf, omega);
+  const torch::Tensor expected = 0.7 * omega.sum(1);  // PSFs sum to 1, masks to 1
+  for (int64_t c = 0; c < 3; ++c)
+    CHECK((J[0][c] - expected[c]).abs().max().item<double>() < 1e-12);
+}
+
+TEST_CASE("sensor: bad depth maps are refused with a message", "[sensor]") {
+  const std::vector<double> depths{0.5, 1.5};
+  torch::Tensor d = torch::full({1, 1, 4, 4}, 1.0);
+  d[0][0][1][1] = std::nan("");
+  CHECK_THROWS_WITH(optics::layer_masks(d, depths, 0.0), Catch::Contains("NaN"));
+  d[0][0][1][1] = 0.0;
+  CHECK_THROWS_WITH(optics::layer_masks(d, depths, 0.0), Catch::Contains("negative"));
+  d[0][0][1][1] = -2.0;
+  CHECK_THROWS_AS(optics::layer_masks(d, depths, 0.0), InputError);
+  d[0][0][1][1] = std::numeric_limits<float>::infinity();
+  CHECK_THROWS_AS(optics::layer_masks(d, depths, 0.0), InputError);
+}
+
+TEST_CASE("sensor: gradient from the image reaches the height map and matches finite differences", "[sensor][gradient]") {
+  const int64_t N = 12, P = 5, H = 10, W = 10;
+  const std::vector<double> depths{0.4, 2.0};
+  auto spec = test::make_spec({480e-9, 620e-9}, depths, N, 10e-6, 0.11e-3, P, 10e-6, 0.02, 2);
+  const optics::PsfSimulator sim(spec);
+  const torch::Tensor h0 = optics::random_height(N, 1.2e-6, 9);
+  torch::manual_seed(4);
+  const torch::Tensor I = torch::rand({1, 2, H, W}, torch::kFloat64);
+  torch::Tensor depth = torch::full({1, 1, H, W}, 0.4, torch::kFloat64);
+  depth.narrow(3, 0, 4).fill_(2.0);
+  const torch::Tensor masks = optics::layer_masks(depth, depths, 1.0);
+  const torch::Tensor omega = torch::rand({3, 2}, torch::kFloat64);
+  const torch::Tensor w = torch::randn({1, 3, H, W}, torch::kFloat64);
+  auto loss = [&](const torch::Tensor& h) {
+    return (optics::render_sensor_image(I, masks, sim.compute(h).psf, omega) * w).sum();
+  };
+  torch::Tensor h = h0.clone().set_requires_grad(true);
+  loss(h).backward();
+  const torch::Tensor g = h.grad();
+  REQUIRE(g.abs().max().item<double>() > 0.0);
+  const double eps = 1e-11;
+  for (int64_t idx : {int64_t(5 * N + 5), int64_t(6 * N + 4), int64_t(3 * N + 6)}) {
+    torch::Tensor hp = h0.clone(), hm = h0.clone();
+    hp.view(-1)[idx] += eps;
+    hm.view(-1)[idx] -= eps;
+    const double fd = (loss(hp).item<double>() - loss(hm).item<double>()) / (2 * eps);
+    const double ad = g.view(-1)[idx].item<double>();
+    INFO("autograd " << ad << " finite difference " << fd);
+    CHECK(std::fabs(ad - fd) <= 1e-6 * std::max(1.0, std::fabs(fd)) + 1e-6 * g.abs().max().item<double>());
+  }
+}
