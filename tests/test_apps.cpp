@@ -6,6 +6,8 @@
 #include <filesystem>
 #include <sys/wait.h>
 
+#include <nlohmann/json.hpp>
+
 #include "common/tensor_io.h"
 #include "helpers.h"
 
@@ -97,4 +99,26 @@ TEST_CASE("bad input is exit 2 with one line naming the key or file", "[app]") {
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("/nonexistent.pt"));
   CHECK(run("hsd_psf --help").code == 0);
+}
+
+TEST_CASE("hsd_bench psf --json prints exactly one JSON object on stdout", "[app][bench]") {
+  const std::string cmd = "cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) +
+                          "/hsd_bench psf --json --config configs/tiny.json --repeats 1 2>/dev/null";
+  std::string out;
+  if (FILE* f = popen(cmd.c_str(), "r")) {
+    char buf[4096];
+    size_t n;
+    while ((n = fread(buf, 1, sizeof buf, f)) > 0) out.append(buf, n);
+    CHECK(WEXITSTATUS(pclose(f)) == 0);
+  }
+  INFO("stdout: " << out);
+  REQUIRE(lines(out) == 1);
+  const auto j = nlohmann::json::parse(out);
+  REQUIRE(j.is_object());
+  for (const char* k : {"threads", "seconds_fwd", "seconds_fwd_bwd", "peak_rss_mib", "psf_rel_l1_max", "psf_rel_l1_mean"})
+    CHECK(j.contains(k));
+  CHECK(j["bands"] == 3);
+  CHECK(j["psf_rel_l1_max"].get<double>() < 0.03);
+  CHECK(j["baseline_fft_bilinear"]["psf_rel_l1_max"].get<double>() > j["psf_rel_l1_max"].get<double>());
+  CHECK(run("hsd_bench nosuch").code == 2);
 }
