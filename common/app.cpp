@@ -17,19 +17,6 @@ std::string AppArgs::option(const std::string& flag, const std::string& fallback
   return it == options.end() ? fallback : it->second;
 }
 
-double AppArgs::number(const std::string& flag, double fallback) const {
-  auto it = options.find(flag);
-  if (it == options.end()) return fallback;
-  try {
-    size_t pos = 0;
-    const double v = std::stod(it->second, &pos);
-    if (pos != it->second.size()) throw std::invalid_argument("trailing");
-    return v;
-  } catch (const std::exception&) {
-    input_error(flag, "expected a number, got \"" + it->second + "\"");
-  }
-}
-
 int64_t AppArgs::integer(const std::string& flag, int64_t fallback) const {
   auto it = options.find(flag);
   if (it == options.end()) return fallback;

@@ -23,7 +23,6 @@ struct AppArgs {
 
   bool has(const std::string& flag) const { return options.count(flag) || switches.count(flag); }
   std::string option(const std::string& flag, const std::string& fallback) const;
-  double number(const std::string& flag, double fallback) const;  // InputError if not a number
   int64_t integer(const std::string& flag, int64_t fallback) const;
 };
 

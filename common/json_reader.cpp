@@ -160,13 +160,6 @@ int64_t JsonReader::get_int(const std::string& key, int64_t fallback) const {
   return has(key) ? get_int(key) : fallback;
 }
 
-bool JsonReader::get_bool(const std::string& key, bool fallback) const {
-  if (!has(key)) return fallback;
-  const Json& j = at(key);
-  if (!j.is_boolean()) fail(key, "expected true or false, got " + type_name(j));
-  return j.get<bool>();
-}
-
 std::string JsonReader::get_string(const std::string& key) const {
   const Json& j = at(key);
   if (!j.is_string()) fail(key, "expected a string, got " + type_name(j));
@@ -188,14 +181,6 @@ std::vector<double> JsonReader::get_number_array(const std::string& key) const {
   }
   return out;
 }
-std::optional<std::vector<double>> JsonReader::get_optional_number_array(const std::string& key) const {
-  if (!has(key) || (*node_)[key].is_null()) {
-    if (has(key)) used_->insert(path(key));
-    return std::nullopt;
-  }
-  return get_number_array(key);
-}
-
 namespace {
 void find_unused(const Json& j, const std::string& prefix, const std::set<std::string>& used,
                  std::string& first) {

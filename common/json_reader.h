@@ -37,11 +37,9 @@ class JsonReader {
   double get_number(const std::string& key, double fallback) const;
   int64_t get_int(const std::string& key) const;
   int64_t get_int(const std::string& key, int64_t fallback) const;
-  bool get_bool(const std::string& key, bool fallback) const;
   std::string get_string(const std::string& key) const;
   std::string get_string(const std::string& key, const std::string& fallback) const;
   std::vector<double> get_number_array(const std::string& key) const;
-  std::optional<std::vector<double>> get_optional_number_array(const std::string& key) const;
   // Number or null (null -> fallback).
   double get_number_or_null(const std::string& key, double fallback) const;
 

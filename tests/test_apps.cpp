@@ -33,6 +33,19 @@ Run run(const std::string& args) {
   }
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, err};
 }
+// Runs a shell command and returns its stdout and exit code.
+std::pair<std::string, int> capture(const std::string& cmd) {
+  std::string out;
+  int code = -1;
+  if (FILE* f = popen(cmd.c_str(), "r")) {
+    char buf[4096];
+    size_t n;
+    while ((n = fread(buf, 1, sizeof buf, f)) > 0) out.append(buf, n);
+    const int status = pclose(f);
+    code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
+  return {out, code};
+}
 int lines(const std::string& s) { return int(std::count(s.begin(), s.end(), '\n')); }
 }  // namespace
 
@@ -67,12 +80,7 @@ TEST_CASE("hsd_psf writes the contract's psf.pt and atlas and config", "[app]") 
                          "'); p = d['psf']; assert tuple(p.shape) == (3, 2, 15, 15), p.shape; "
                          "assert abs(float(p.sum((2, 3)).min()) - 1) < 1e-5; "
                          "assert d['wavelengths_m'].dtype == torch.float64; print('ok')\" 2>&1";
-  std::string got;
-  if (FILE* f = popen(py.c_str(), "r")) {
-    char buf[512];
-    while (fgets(buf, sizeof buf, f)) got += buf;
-    pclose(f);
-  }
+  const std::string got = capture(py).first;
   INFO("python3 said: " << got << " (needs python3-torch: bash scripts/setup.sh)");
   CHECK(got.find("ok") != std::string::npos);
 }
@@ -104,13 +112,8 @@ TEST_CASE("bad input is exit 2 with one line naming the key or file", "[app]") {
 TEST_CASE("hsd_bench psf --json prints exactly one JSON object on stdout", "[app][bench]") {
   const std::string cmd = "cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) +
                           "/hsd_bench psf --json --config configs/tiny.json --repeats 1 2>/dev/null";
-  std::string out;
-  if (FILE* f = popen(cmd.c_str(), "r")) {
-    char buf[4096];
-    size_t n;
-    while ((n = fread(buf, 1, sizeof buf, f)) > 0) out.append(buf, n);
-    CHECK(WEXITSTATUS(pclose(f)) == 0);
-  }
+  const auto [out, code] = capture(cmd);
+  CHECK(code == 0);
   INFO("stdout: " << out);
   REQUIRE(lines(out) == 1);
   const auto j = nlohmann::json::parse(out);

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cstdio>
 #include <malloc.h>
 #include <fstream>
 #include <string>
