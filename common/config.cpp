@@ -134,9 +134,25 @@ Config parse_config(const Json& resolved) {
   if (c.threads < 0 || c.threads > 1024) r.fail("threads", "must be in [0, 1024] (0 = all cores)");
   c.optics = parse_optics(r.child("optics"));
   if (auto s = r.optional_child("sensor")) {
-    c.sensor.camera = s->get_string("camera", c.sensor.camera);
-    c.sensor.noise_std = s->get_number("noise_std", c.sensor.noise_std);
-    if (c.sensor.noise_std < 0.0) s->fail("noise_std", "must be >= 0 (0 disables noise)");
+    auto& S = c.sensor;
+    S.camera = s->get_string("camera", S.camera);
+    S.noise_std = s->get_number("noise_std", S.noise_std);
+    if (S.noise_std < 0.0) s->fail("noise_std", "must be >= 0 (0 disables noise)");
+    S.noise_std_min = s->get_number_or_null("noise_std_min", S.noise_std_min);
+    if (S.noise_std_min > S.noise_std) s->fail("noise_std_min", "must be <= sensor.noise_std");
+    S.photons_at_saturation = s->get_number("photons_at_saturation", S.photons_at_saturation);
+    if (S.photons_at_saturation < 0.0) s->fail("photons_at_saturation", "must be >= 0 (0 disables shot noise)");
+    S.saturation = s->get_number("saturation", S.saturation);
+    if (S.saturation < 0.0) s->fail("saturation", "must be >= 0 (0 disables clipping)");
+    S.bit_depth = s->get_int("bit_depth", S.bit_depth);
+    if (S.bit_depth < 0 || S.bit_depth > 24) s->fail("bit_depth", "must be in [0, 24] (0 = no quantization)");
+    if (S.bit_depth > 0 && S.saturation == 0.0) s->fail("bit_depth", "quantization needs sensor.saturation > 0");
+    S.mask_sigma_px = s->get_number("mask_sigma_px", S.mask_sigma_px);
+    if (S.mask_sigma_px < 0.0 || S.mask_sigma_px > 100.0) s->fail("mask_sigma_px", "must be in [0, 100] pixels");
+    S.compositing = s->get_string("compositing", S.compositing);
+    if (S.compositing != "linear" && S.compositing != "occlusion")
+      s->fail("compositing", "expected \"linear\" or \"occlusion\", got \"" + S.compositing + "\"");
+    S.illuminant = s->get_string("illuminant", S.illuminant);
   }
   if (auto t = r.optional_child("train")) {
     c.train.steps = t->get_int("steps", c.train.steps);

@@ -52,7 +52,16 @@ struct OpticsConfig {
 
 struct SensorConfig {
   std::string camera = "canon_5d_mark_iii";  // data/spectra/camera_sensitivity_<camera>.csv
-  double noise_std = 0.0;                    // Gaussian read-noise std (relative); 0 disables noise
+  // Additive Gaussian read noise: σ drawn per image uniformly from
+  // [noise_std_min, noise_std] (relative to saturation = 1); 0 disables it.
+  double noise_std = 0.0;
+  double noise_std_min = -1.0;               // < 0: same as noise_std (a fixed σ)
+  double photons_at_saturation = 0.0;        // shot noise as N(J, J/photons); 0 disables it
+  double saturation = 1.0;                   // clip J to [0, saturation]; 0 disables clipping
+  int64_t bit_depth = 0;                     // quantize to 2^bits − 1 levels (straight-through); 0 = off
+  double mask_sigma_px = 1.0;                // Gaussian σ of the soft layer masks M_z [pixels]
+  std::string compositing = "linear";        // "linear" (the paper's model) | "occlusion" (Ikoma et al. 2021)
+  std::string illuminant = "D65";            // column of data/spectra/illuminants.csv, for reflectance scenes
 };
 
 struct TrainConfig {

@@ -1,5 +1,6 @@
 #include "optics/sensor_image.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <torch/torch.h>
@@ -106,6 +107,44 @@ torch::Tensor render_sensor_image(const torch::Tensor& radiance, const torch::Te
         torch::tensordot(om, prod, {1}, {1}).permute({1, 0, 2, 3, 4}).contiguous());  // [B, C, nh, nwr]
     const torch::Tensor img = torch::fft::irfft2(summed, c10::IntArrayRef{nh, nw}).narrow(2, r, H).narrow(3, r, W);
     out = out + masks.narrow(1, z, 1) * img;
+  }
+  return out;
+}
+
+torch::Tensor render_sensor_image_occlusion(const torch::Tensor& radiance, const torch::Tensor& alphas,
+                                            const torch::Tensor& psf, const torch::Tensor& omega,
+                                            const std::vector<double>& layer_depths_m) {
+  check_shapes(radiance, alphas, psf, omega);
+  const int64_t Z = alphas.size(1);
+  if (int64_t(layer_depths_m.size()) != Z) throw InputError("occlusion compositing: one depth per layer needed");
+  const int64_t B = radiance.size(0), L = radiance.size(1), H = radiance.size(2), W = radiance.size(3);
+  const int64_t P = psf.size(2), r = P / 2, C = omega.size(0), nh = H + 2 * r, nw = W + 2 * r;
+  std::vector<int64_t> order(static_cast<size_t>(Z));
+  for (int64_t z = 0; z < Z; ++z) order[size_t(z)] = z;
+  std::sort(order.begin(), order.end(), [&](int64_t a, int64_t b) { return layer_depths_m[size_t(a)] > layer_depths_m[size_t(b)]; });
+  auto pad = [&](const torch::Tensor& x) { return F::pad(x, F::PadFuncOptions({r, r, r, r}).mode(torch::kReplicate)); };
+  const torch::Tensor om = omega.to(radiance.dtype());
+  const torch::Tensor band_used = (om.detach().abs().sum(0) > 0).cpu();
+  torch::Tensor out = torch::zeros({B, C, H, W}, radiance.options());
+  for (int64_t l = 0; l < L; ++l) {
+    if (!band_used[l].item<bool>()) continue;
+    const torch::Tensor I = radiance.narrow(1, l, 1);  // [B, 1, H, W]
+    torch::Tensor y = torch::zeros({B, 1, H, W}, radiance.options());
+    torch::Tensor cum = torch::zeros({B, 1, H, W}, radiance.options());
+    for (int64_t z : order) {
+      const torch::Tensor a = alphas.narrow(1, z, 1);
+      cum = cum + a;
+      const torch::Tensor stacked = pad(torch::cat({a * I, a, cum}, 1));  // [B, 3, nh, nw]
+      const torch::Tensor conv = torch::fft::irfft2(torch::fft::rfft2(stacked) * otf(psf[l][z].to(radiance.dtype()), nh, nw),
+                                                    c10::IntArrayRef{nh, nw})
+                                     .narrow(2, r, H)
+                                     .narrow(3, r, W);
+      // Guarded normalisation: numerators never exceed E (α_k ≤ cumulative α).
+      const torch::Tensor E = conv.narrow(1, 2, 1).clamp_min(1e-6);
+      const torch::Tensor b = conv.narrow(1, 0, 1) / E, alpha_blur = conv.narrow(1, 1, 1) / E;
+      y = y * (1.0 - alpha_blur) + b;  // "over": nearer layers composite on top
+    }
+    out = out + om.select(1, l).view({1, C, 1, 1}) * y;
   }
   return out;
 }

@@ -35,6 +35,18 @@ std::vector<int64_t> occupied_layers(const torch::Tensor& depth_m, const std::ve
 torch::Tensor render_sensor_image(const torch::Tensor& radiance, const torch::Tensor& masks, const torch::Tensor& psf,
                                   const torch::Tensor& omega, bool leave_out = true);
 
+// Occlusion-aware layered compositing (Ikoma et al., ICCP 2021, "Depth from
+// defocus with learned optics"), layers ordered far to near by
+// layer_depths_m (the depths of the alphas' layers, in their order):
+//   E_k = (Σ_{j far-or-equal k} α_j) ⊗ P_k,  b_k = ((α_k I) ⊗ P_k) / E_k,  a_k = (α_k ⊗ P_k) / E_k
+//   y_λ = Σ_k b_k Π_{k' nearer than k} (1 − a_k'),   J_c = Σ_λ Ω_c,λ y_λ
+// (blurred-alpha normalisation, then "over" compositing). Each (λ, z) needs its
+// own convolutions, so this costs about 3× the straightforward linear model.
+// alphas [B, Z', H, W] (binary or soft occupancy), other shapes as above.
+torch::Tensor render_sensor_image_occlusion(const torch::Tensor& radiance, const torch::Tensor& alphas,
+                                            const torch::Tensor& psf, const torch::Tensor& omega,
+                                            const std::vector<double>& layer_depths_m);
+
 // The straightforward evaluation of the same equation, one FFT convolution per
 // (λ, z); the reference the fast path is tested and benchmarked against.
 torch::Tensor render_sensor_image_direct(const torch::Tensor& radiance, const torch::Tensor& masks,

@@ -125,7 +125,25 @@ torch::Tensor camera_response(const std::string& camera, const std::vector<doubl
                 "-" + std::to_string(t.max_nm()) + " nm); the response is taken as 0 outside it");
     for (int k = 0; k < 3; ++k) acc[k][l] = t.band_mean(ch[k], c - half_nm, c + half_nm);
   }
-  return out.to(torch::kFloat32);
+  const double largest = out.sum(1).max().item<double>();
+  if (!(largest > 0.0)) input_error("config key sensor.camera", "camera \"" + camera + "\" has no response in these bands");
+  return (out / largest).to(torch::kFloat32);
+}
+
+torch::Tensor illuminant_bands(const std::string& name, const std::vector<double>& wavelengths_m, double band_width_m) {
+  static const SpectralTable table = SpectralTable::load_csv(spectra_path("illuminants.csv"));
+  if (!table.has_column(name)) {
+    std::string known;
+    for (const auto& c : table.columns()) known += (known.empty() ? "" : ", ") + c;
+    input_error("config key sensor.illuminant", "unknown illuminant \"" + name + "\" (known: " + known + ")");
+  }
+  const double half_nm = 0.5 * band_width_m * 1e9;
+  std::vector<double> v;
+  for (double w : wavelengths_m) v.push_back(table.band_mean(name, w * 1e9 - half_nm, w * 1e9 + half_nm));
+  torch::Tensor t = torch::tensor(v, torch::kFloat64);
+  const double m = t.max().item<double>();
+  if (!(m > 0.0)) input_error("config key sensor.illuminant", "illuminant \"" + name + "\" is zero in every band");
+  return (t / m).to(torch::kFloat32);
 }
 
 std::array<double, 3> wavelength_display_rgb(double wavelength_m) {

@@ -46,10 +46,17 @@ class SpectralTable {
 };
 
 // Camera response Ω: float32 [3, L] (rows R, G, B), band means of
-// data/spectra/camera_sensitivity_<camera>.csv over each band. Relative units
-// (the table's green maximum is 1). Warns when a band leaves the table's range.
+// data/spectra/camera_sensitivity_<camera>.csv over each band, scaled so the
+// largest row sums to 1: a radiance of 1 in every band gives at most 1 (the
+// saturation level) in any channel. Warns when a band leaves the table's range.
 torch::Tensor camera_response(const std::string& camera, const std::vector<double>& wavelengths_m,
                               double band_width_m);
+
+// Illuminant spectral power per band: float32 [L], band means of the column
+// `name` of data/spectra/illuminants.csv, scaled to a maximum of 1. A
+// reflectance scene's radiance is reflectance × this. InputError naming
+// sensor.illuminant for an unknown name.
+torch::Tensor illuminant_bands(const std::string& name, const std::vector<double>& wavelengths_m, double band_width_m);
 
 // Display colour of a monochromatic wavelength: CIE 1931 x̄ȳz̄ -> linear sRGB,
 // negatives clipped, brightest channel scaled to 1. For tinting PSF plots.

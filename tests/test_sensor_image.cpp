@@ -123,3 +123,40 @@ TEST_CASE("sensor: gradient from the image reaches the height map and matches fi
     CHECK(std::fabs(ad - fd) <= 1e-6 * std::max(1.0, std::fabs(fd)) + 1e-6 * g.abs().max().item<double>());
   }
 }
+
+TEST_CASE("sensor: occlusion compositing keeps a uniform scene uniform and matches the linear model for one layer",
+          "[sensor][occlusion]") {
+  const int64_t L = 3, Z = 2, P = 9, H = 24, W = 24;
+  const std::vector<double> depths{0.5, 1.5};
+  const torch::Tensor psf = random_psf(L, Z, P, 5);
+  const torch::Tensor omega = torch::rand({3, L}, torch::kFloat64);
+  torch::Tensor depth = torch::full({1, 1, H, W}, 0.5, torch::kFloat64);
+  depth.narrow(3, 0, W / 2).fill_(1.5);
+  const torch::Tensor alphas = optics::layer_masks(depth, depths, 0.0);
+  const torch::Tensor I = torch::full({1, L, H, W}, 0.3, torch::kFloat64);
+  const torch::Tensor J = optics::render_sensor_image_occlusion(I, alphas, psf, omega, depths);
+  const torch::Tensor expected = 0.3 * omega.sum(1);
+  for (int64_t c = 0; c < 3; ++c) CHECK((J[0][c] - expected[c]).abs().max().item<double>() < 1e-9);
+  // One layer everywhere: identical to the paper's linear model.
+  const torch::Tensor Ir = torch::rand({1, L, H, W}, torch::kFloat64);
+  const torch::Tensor one = optics::layer_masks(torch::full({1, 1, H, W}, 1.5, torch::kFloat64), depths, 0.0);
+  const torch::Tensor lin = optics::render_sensor_image(Ir, one, psf, omega);
+  const torch::Tensor occ = optics::render_sensor_image_occlusion(Ir, one, psf, omega, depths);
+  CHECK((lin - occ).abs().max().item<double>() < 1e-9);
+}
+
+TEST_CASE("sensor: an opaque near layer hides what lies behind it", "[sensor][occlusion]") {
+  const int64_t L = 2, P = 7, H = 40, W = 40;
+  const std::vector<double> depths{0.5, 2.0};
+  const torch::Tensor psf = random_psf(L, 2, P, 6);
+  const torch::Tensor omega = torch::ones({3, L}, torch::kFloat64);
+  // Far layer bright everywhere except a near black square in the middle.
+  torch::Tensor depth = torch::full({1, 1, H, W}, 2.0, torch::kFloat64);
+  depth.narrow(2, 10, 20).narrow(3, 10, 20).fill_(0.5);
+  torch::Tensor I = torch::ones({1, L, H, W}, torch::kFloat64);
+  I.narrow(2, 10, 20).narrow(3, 10, 20).zero_();
+  const torch::Tensor alphas = optics::layer_masks(depth, depths, 0.0);
+  const torch::Tensor J = optics::render_sensor_image_occlusion(I, alphas, psf, omega, depths);
+  CHECK(J[0][1][20][20].item<double>() < 1e-9);               // deep inside the near square: black
+  CHECK(J[0][1][2][2].item<double>() == Approx(2.0).epsilon(1e-9));  // far away from it: 2 bands of 1
+}

@@ -54,7 +54,18 @@ TEST_CASE("camera response is 3 x L and non-negative with the expected dominant 
   CHECK(omega[1][13].item<double>() > omega[2][13].item<double>());  // 550 nm: G > B
   CHECK(omega[2][3].item<double>() > omega[0][3].item<double>());    // 450 nm: B > R
   CHECK(omega[0][22].item<double>() > omega[2][22].item<double>());  // 640 nm: R > B
+  CHECK(omega.sum(1).max().item<double>() == Approx(1.0).epsilon(1e-6));  // largest row sums to 1
   CHECK_THROWS_AS(camera_response("box_camera", w, 10e-9), InputError);
+}
+
+TEST_CASE("illuminants are band means scaled to a maximum of 1", "[spectrum]") {
+  const std::vector<double> w{450e-9, 550e-9, 650e-9};
+  const torch::Tensor e = illuminant_bands("E", w, 10e-9);  // equal energy
+  CHECK((e - 1.0).abs().max().item<double>() < 1e-6);
+  const torch::Tensor a = illuminant_bands("A", w, 10e-9);  // incandescent: rises toward red
+  CHECK(a[2].item<double>() == Approx(1.0));
+  CHECK(a[0].item<double>() < a[1].item<double>());
+  CHECK_THROWS_WITH(illuminant_bands("D99", w, 10e-9), Catch::Contains("sensor.illuminant"));
 }
 
 TEST_CASE("display colours follow the spectrum", "[spectrum]") {
