@@ -45,14 +45,13 @@ void print_energy_table(const torch::Tensor& e, const optics::PsfSpec& spec) {
 
 int run(const AppArgs& args) {
   const Config cfg = load_config(args.config_path, args.overrides);
-  setup_threads(cfg.threads);
   const torch::Device device = resolve_device(cfg.device);
-  make_dirs(args.out_dir);
-
   const auto material = optics::Material::load(cfg.optics.material);
-  const optics::PsfSpec spec = optics::make_psf_spec(cfg.optics, material, device);
-  optics::Doe doe = optics::make_doe(cfg.optics, material, cfg.seed, device);
+  optics::Doe doe = optics::make_doe(cfg.optics, material, cfg.seed, device);  // reads DOE files: may fail
   const torch::Tensor height = doe.height().detach();
+  setup_threads(cfg.threads);  // inputs are checked: from here on, progress output
+  make_dirs(args.out_dir);
+  const optics::PsfSpec spec = optics::make_psf_spec(cfg.optics, material, device);
 
   std::string nodes;
   for (int n : spec.pixel_nodes) nodes += std::to_string(n) + " ";

@@ -9,6 +9,8 @@
 #include <nlohmann/json.hpp>
 
 #include "common/tensor_io.h"
+#include "data/scene_exr.h"
+#include "optics/spectrum.h"
 #include "helpers.h"
 
 using namespace hsd;
@@ -106,6 +108,11 @@ TEST_CASE("bad input is exit 2 with one line naming the key or file", "[app]") {
   r = run("hsd_psf --config configs/tiny.json --set optics.doe.init=file:/nonexistent.pt --out " + out);
   CHECK(r.code == 2);
   CHECK_THAT(r.err, Catch::Contains("/nonexistent.pt"));
+  CHECK(lines(r.err) == 1);
+  r = run("hsd_psf --config configs/tiny.json --set optics.doe.init=fisher --set optics.doe.fisher_path=/none.pt --out " + out);
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("hsd_fisher"));
+  CHECK(lines(r.err) == 1);
   CHECK(run("hsd_psf --help").code == 0);
 }
 
@@ -124,4 +131,57 @@ TEST_CASE("hsd_bench psf --json prints exactly one JSON object on stdout", "[app
   CHECK(j["psf_rel_l1_max"].get<double>() < 0.03);
   CHECK(j["baseline_fft_bilinear"]["psf_rel_l1_max"].get<double>() > j["psf_rel_l1_max"].get<double>());
   CHECK(run("hsd_bench nosuch").code == 2);
+}
+
+TEST_CASE("hsd_simulate renders a scene: contract files and a white scene gives the expected colour", "[app][simulate]") {
+  const fs::path dir = fs::temp_directory_path() / "hsd_test_simulate";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  // tiny.json bands (450, 550, 650 nm); grey reflectance 0.5, two depths.
+  data::SpectralScene s;
+  s.wavelengths_m = {450e-9, 550e-9, 650e-9};
+  s.spectral = torch::full({3, 24, 30}, 0.5);
+  s.depth_m = torch::full({1, 24, 30}, 0.5);
+  s.depth_m.narrow(2, 15, 15).fill_(1.5);
+  s.mask = torch::ones({1, 24, 30});
+  const std::string scene = (dir / "grey.exr").string();
+  data::write_scene_exr(scene, s);
+  const std::string out = (dir / "out").string();
+  const Run r = run("hsd_simulate --config configs/tiny.json --scene " + scene + " --out " + out);
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  CHECK(fs::exists(fs::path(out) / "sensor.png"));
+  CHECK(fs::exists(fs::path(out) / "psf_atlas.png"));
+  CHECK(fs::exists(fs::path(out) / "config.json"));
+  const torch::Tensor J = data::read_channels_exr(out + "/sensor.exr", {"R", "G", "B"});
+  REQUIRE(J.sizes() == torch::IntArrayRef({3, 24, 30}));
+  // A uniform grey scene stays uniform: J_c = 0.5 Σ_λ Ω_c,λ E_λ (PSFs and masks sum to 1).
+  const torch::Tensor omega = optics::camera_response("canon_5d_mark_iii", s.wavelengths_m, 100e-9);
+  const torch::Tensor e = optics::illuminant_bands("D65", s.wavelengths_m, 100e-9);
+  const torch::Tensor expected = 0.5 * (omega * e.view({1, -1})).sum(1);
+  for (int64_t c = 0; c < 3; ++c) CHECK((J[c] - expected[c]).abs().max().item<double>() < 1e-5);
+  CHECK_THAT(r.err, Catch::Contains("2 of 2"));
+}
+
+TEST_CASE("hsd_simulate refuses bad scenes with exit 2 naming the file", "[app][simulate]") {
+  const fs::path dir = fs::temp_directory_path() / "hsd_test_simulate_bad";
+  fs::create_directories(dir);
+  data::SpectralScene s;
+  s.wavelengths_m = {450e-9, 500e-9};  // tiny.json has 3 bands
+  s.spectral = torch::full({2, 8, 8}, 0.5);
+  s.depth_m = torch::full({1, 8, 8}, 1.0);
+  const std::string scene = (dir / "two_bands.exr").string();
+  data::write_scene_exr(scene, s);
+  const std::string out = (dir / "out").string();
+  Run r = run("hsd_simulate --config configs/tiny.json --scene " + scene + " --out " + out);
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("two_bands.exr") && Catch::Contains("optics.wavelengths_nm"));
+  CHECK(lines(r.err) == 1);
+  r = run("hsd_simulate --config configs/tiny.json --scene " + (dir / "none.exr").string() + " --out " + out);
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("none.exr"));
+  r = run("hsd_simulate --config configs/tiny.json --out " + out);
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--scene"));
+  CHECK_FALSE(fs::exists(fs::path(out) / "sensor.exr"));
 }
