@@ -185,3 +185,20 @@ TEST_CASE("hsd_simulate refuses bad scenes with exit 2 naming the file", "[app][
   CHECK_THAT(r.err, Catch::Contains("--scene"));
   CHECK_FALSE(fs::exists(fs::path(out) / "sensor.exr"));
 }
+
+TEST_CASE("hsd_bench sim --json reports the contract's keys", "[app][bench]") {
+  const auto [out, code] = capture("cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) +
+                                   "/hsd_bench sim --json --patch 32 --bands 3 --depths 3 --psf 9 --pupil 64 "
+                                   "--repeats 1 --threads 2 2>/dev/null");
+  CHECK(code == 0);
+  INFO("stdout: " << out);
+  REQUIRE(lines(out) == 1);
+  const auto j = nlohmann::json::parse(out);
+  for (const char* k : {"seconds_fwd_bwd", "peak_rss_mib", "seconds_floor", "baseline_seconds_fwd_bwd", "patch", "bands",
+                        "depths", "psf", "pupil", "threads", "seconds_fwd_bwd_one_layer"})
+    CHECK(j.contains(k));
+  CHECK(j["patch"] == 32);
+  CHECK(j["pupil"] == 64);
+  CHECK(j["threads"] == 2);
+  CHECK(run("hsd_bench sim --psf 8").code == 2);
+}

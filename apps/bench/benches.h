@@ -13,5 +13,6 @@ struct BenchOutput {
 };
 
 int bench_psf(const Config& cfg, const AppArgs& args, BenchOutput& out);
+int bench_sim(Config cfg, const AppArgs& args, BenchOutput& out);
 
 }  // namespace hsd::bench

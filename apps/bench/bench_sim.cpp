@@ -1,0 +1,194 @@
+// hsd_bench sim: forward+backward (gradient w.r.t. the height map) of PSF
+// simulation plus sensor image formation on one patch, measured side by side
+// in one run for
+//   * hsd: matrix-Fourier-transform PSFs of the occupied layers, bands summed in
+//     the Fourier domain, leave-out (a 7-layer and a 1-layer scene);
+//   * the baseline: one 2x zero-padded FFT per (λ, z) PSF with bilinear
+//     resampling, and one FFT convolution per (λ, z);
+//   * the floor: the bare batched matrix products and FFTs hsd's method needs
+//     (forward, and the same products again for the backward pass), no autograd.
+#include <cmath>
+#include <cstdio>
+
+#include <torch/torch.h>
+
+#include "bench/baseline_psf.h"
+#include "bench/bench_util.h"
+#include "bench/benches.h"
+#include "common/error.h"
+#include "common/log.h"
+#include "optics/doe.h"
+#include "optics/psf.h"
+#include "optics/sensor_image.h"
+#include "optics/spectrum.h"
+
+namespace hsd::bench {
+
+namespace {
+
+double rel_l1_max(const torch::Tensor& a, const torch::Tensor& ref) {
+  return ((a.to(torch::kFloat64) - ref).abs().sum({2, 3}) / ref.abs().sum({2, 3})).max().item<double>();
+}
+
+// The matrix products and FFTs of one forward+backward of hsd's method, as bare ops.
+void floor_work(const optics::PsfSpec& spec, int64_t layers, int64_t patch) {
+  const int64_t N = spec.doe_samples, P = spec.psf_size, r = P / 2, nh = patch + 2 * r;
+  const auto c = torch::TensorOptions().dtype(torch::kComplexFloat);
+  const torch::Tensor field = torch::randn({N, N}, c);
+  for (size_t l = 0; l < spec.wavelengths_m.size(); ++l) {
+    const int64_t M = P * spec.pixel_nodes[l];
+    const torch::Tensor k = torch::randn({layers, M, N}, c);
+    const torch::Tensor b = torch::mm(k.view({layers * M, N}), field).view({layers, M, N});  // forward GEMM
+    const torch::Tensor f = torch::bmm(b, k.transpose(1, 2));                                 // forward bmm
+    const torch::Tensor gb = torch::bmm(f, k);                                                // backward bmm
+    torch::mm(k.view({layers * M, N}).t().conj(), gb.view({layers * M, N}));                 // backward GEMM
+  }
+  const int64_t L = int64_t(spec.wavelengths_m.size());
+  const torch::Tensor img = torch::randn({1, L, nh, nh});
+  const torch::Tensor spec_img = torch::fft::rfft2(img);                                  // band FFTs
+  const torch::Tensor otf = torch::fft::rfft2(torch::randn({L, layers, nh, nh}));        // OTFs
+  const torch::Tensor out = torch::fft::irfft2(torch::randn({1, 3 * layers, nh, nh / 2 + 1}, c), c10::IntArrayRef{nh, nh});
+  torch::fft::rfft2(out);                                                                 // backward of the inverse FFTs
+  torch::fft::irfft2(otf, c10::IntArrayRef{nh, nh});                                      // backward of the OTF FFTs
+}
+
+}  // namespace
+
+int bench_sim(Config cfg, const AppArgs& args, BenchOutput& out) {
+  const int64_t patch = args.integer("--patch", 256), bands = args.integer("--bands", 25),
+                depths = args.integer("--depths", 7), psf = args.integer("--psf", cfg.optics.psf_size),
+                pupil = args.integer("--pupil", cfg.optics.doe_samples);
+  const int repeats = int(args.integer("--repeats", 3));
+  if (patch < 8 || patch > 4096) input_error("--patch", "must be in [8, 4096]");
+  if (bands < 1 || bands > 200) input_error("--bands", "must be in [1, 200]");
+  if (depths < 1 || depths > 64) input_error("--depths", "must be in [1, 64]");
+  if (psf < 1 || psf % 2 == 0 || psf > patch) input_error("--psf", "must be odd and at most --patch");
+  if (pupil < 16 || pupil > 8192) input_error("--pupil", "must be in [16, 8192]");
+  // Bands spread over the config's range, depths linear in inverse depth over
+  // its range; the DOE grid keeps its physical size (pitch = grid / pupil).
+  auto& o = cfg.optics;
+  const double lo = o.wavelengths_nm.front(), hi = o.wavelengths_nm.back();
+  o.wavelengths_nm.clear();
+  for (int64_t i = 0; i < bands; ++i) o.wavelengths_nm.push_back(bands == 1 ? lo : lo + (hi - lo) * double(i) / double(bands - 1));
+  if (bands > 1) o.band_width_nm = (hi - lo) / double(bands - 1);
+  double zmin = 1e300, zmax = 0.0;
+  for (double z : o.depths_m) zmin = std::min(zmin, z), zmax = std::max(zmax, z);
+  o.depths_m.clear();
+  for (int64_t i = 0; i < depths; ++i)
+    o.depths_m.push_back(1.0 / (1.0 / zmin + (1.0 / zmax - 1.0 / zmin) * (depths == 1 ? 0.0 : double(i) / double(depths - 1))));
+  const double grid = double(o.doe_samples) * o.doe_pitch_m;
+  o.doe_samples = pupil;
+  o.doe_pitch_m = grid / double(pupil);
+  o.psf_size = psf;
+
+  const auto material = optics::Material::load(o.material);
+  const auto spec = optics::make_psf_spec(o, material, torch::kCPU);
+  const optics::PsfSimulator sim(spec);
+  const torch::Tensor h0 = optics::make_doe(o, material, cfg.seed, torch::kCPU).height().detach();
+  const torch::Tensor omega = optics::camera_response(cfg.sensor.camera, spec.wavelengths_m, o.band_width_m());
+  torch::manual_seed(int64_t(cfg.seed));
+  const torch::Tensor radiance = torch::rand({1, bands, patch, patch});
+  // 7-layer scene: vertical stripes, one per layer; 1-layer scene: the middle layer.
+  torch::Tensor depth_all = torch::empty({1, 1, patch, patch});
+  for (int64_t z = 0; z < depths; ++z)
+    depth_all.narrow(3, z * patch / depths, (z + 1) * patch / depths - z * patch / depths).fill_(o.depths_m[size_t(z)]);
+  const torch::Tensor depth_one = torch::full({1, 1, patch, patch}, o.depths_m[size_t(depths / 2)]);
+  const torch::Tensor weights = torch::rand({1, 3, patch, patch});
+
+  auto hsd_step = [&](const torch::Tensor& depth) {
+    return [&, depth] {
+      torch::Tensor h = h0.clone().set_requires_grad(true);
+      const auto layers = optics::occupied_layers(depth, spec.depths_m);
+      std::vector<double> ld;
+      for (int64_t z : layers) ld.push_back(spec.depths_m[size_t(z)]);
+      const torch::Tensor p = sim.compute(h, layers).psf.to(torch::kFloat32);
+      const torch::Tensor J = optics::render_sensor_image(radiance, optics::layer_masks(depth, ld, 1.0), p, omega);
+      (J * weights).sum().backward();
+    };
+  };
+  const torch::Tensor aperture = sim.aperture();
+  auto baseline_step = [&] {
+    torch::Tensor h = h0.clone().set_requires_grad(true);
+    const torch::Tensor p = baseline_fft_psf(spec, aperture, h).to(torch::kFloat32);
+    const torch::Tensor J = optics::render_sensor_image_direct(radiance, optics::layer_masks(depth_all, spec.depths_m, 1.0), p, omega);
+    (J * weights).sum().backward();
+  };
+
+  const double rss_start = current_rss_mib();
+  log::info("hsd, " + std::to_string(depths) + "-layer scene ...");
+  const double t_all = median_seconds(hsd_step(depth_all), repeats);
+  const double peak_all = peak_rss_during(hsd_step(depth_all));
+  log::info("hsd, 1-layer scene ...");
+  const double t_one = median_seconds(hsd_step(depth_one), repeats);
+  log::info("floor (bare matrix products and FFTs) ...");
+  const double t_floor = median_seconds([&] { floor_work(spec, depths, patch); }, repeats);
+  double t_base = 0.0, peak_base = 0.0;
+  if (!args.has("--no-baseline")) {
+    log::info("baseline (FFT + bilinear PSFs, one FFT convolution per (lambda, z)) ...");
+    t_base = median_seconds(baseline_step, std::max(1, repeats / 2));
+    peak_base = peak_rss_during(baseline_step);
+  }
+  log::info("PSF accuracy against float64 with 8x8 nodes per pixel ...");
+  torch::Tensor ref;
+  double err_hsd = 0.0, err_base = 0.0;
+  {
+    torch::NoGradGuard g;
+    auto ref_spec = spec;
+    ref_spec.real_dtype = torch::kFloat64;
+    ref_spec.pixel_nodes.assign(spec.pixel_nodes.size(), 8);
+    ref = optics::PsfSimulator(ref_spec).compute(h0).psf;
+    err_hsd = rel_l1_max(sim.compute(h0).psf, ref);
+    if (!args.has("--no-baseline")) err_base = rel_l1_max(baseline_fft_psf(spec, aperture, h0), ref);
+  }
+
+  out.json = Json{{"bench", "sim"},
+                  {"threads", torch::get_num_threads()},
+                  {"patch", patch},
+                  {"bands", bands},
+                  {"depths", depths},
+                  {"psf", psf},
+                  {"pupil", pupil},
+                  {"repeats", repeats},
+                  {"pixel_nodes", spec.pixel_nodes},
+                  {"seconds_fwd_bwd", t_all},
+                  {"seconds_fwd_bwd_one_layer", t_one},
+                  {"one_layer_speedup", t_all / t_one},
+                  {"peak_rss_mib", peak_all},
+                  {"rss_at_start_mib", rss_start},
+                  {"seconds_floor", t_floor},
+                  {"ratio_to_floor", t_all / t_floor},
+                  {"psf_rel_l1_max", err_hsd}};
+  if (!args.has("--no-baseline")) {
+    out.json["baseline_seconds_fwd_bwd"] = t_base;
+    out.json["baseline_peak_rss_mib"] = peak_base;
+    out.json["baseline_psf_rel_l1_max"] = err_base;
+    out.json["speedup_vs_baseline"] = t_base / t_all;
+    out.json["memory_ratio_vs_baseline"] = (peak_base - rss_start) / std::max(1.0, peak_all - rss_start);
+  }
+  char buf[256];
+  std::string text = "sensor simulation fwd+bwd: patch " + std::to_string(patch) + ", " + std::to_string(bands) +
+                     " bands, " + std::to_string(depths) + " depths, PSF " + std::to_string(psf) + ", pupil " +
+                     std::to_string(pupil) + ", threads " + std::to_string(torch::get_num_threads()) + "\n";
+  std::snprintf(buf, sizeof buf, "process RSS before the runs: %.0f MiB\n", rss_start);
+  text += buf;
+  text += "method                               fwd+bwd [s]  peak RSS [MiB]  PSF rel L1 worst\n";
+  std::snprintf(buf, sizeof buf, "%-36s %11.3f %15.0f %17.2e\n", ("hsd, " + std::to_string(depths) + "-layer scene").c_str(),
+                t_all, peak_all, err_hsd);
+  text += buf;
+  std::snprintf(buf, sizeof buf, "%-36s %11.3f\n", "hsd, 1-layer scene", t_one);
+  text += buf;
+  std::snprintf(buf, sizeof buf, "%-36s %11.3f\n", "floor (bare GEMMs and FFTs)", t_floor);
+  text += buf;
+  if (!args.has("--no-baseline")) {
+    std::snprintf(buf, sizeof buf, "%-36s %11.3f %15.0f %17.2e\n", "baseline (FFT PSF + per-(l,z) conv)", t_base,
+                  peak_base, err_base);
+    text += buf;
+    std::snprintf(buf, sizeof buf, "speed-up vs baseline %.1fx, memory (above start) %.1fx less, 1-layer %.1fx faster, %.2fx the floor\n",
+                  t_base / t_all, (peak_base - rss_start) / std::max(1.0, peak_all - rss_start), t_all / t_one, t_all / t_floor);
+    text += buf;
+  }
+  out.text = text;
+  return 0;
+}
+
+}  // namespace hsd::bench
