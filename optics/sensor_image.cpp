@@ -59,6 +59,19 @@ void check_shapes(const torch::Tensor& radiance, const torch::Tensor& masks, con
     throw InputError("camera response must be [C, L], got " + c10::str(omega.sizes()));
 }
 
+}  // namespace
+
+int64_t fast_fft_size(int64_t n) {
+  for (int64_t m = std::max<int64_t>(n, 1);; ++m) {
+    int64_t k = m;
+    for (int64_t p : {2, 3, 5})
+      while (k % p == 0) k /= p;
+    if (k == 1) return m;
+  }
+}
+
+namespace {
+
 // OTFs of kernels [..., P, P] for real FFTs of size (nh, nw), kernel centre at (0, 0).
 torch::Tensor otf(const torch::Tensor& psf, int64_t nh, int64_t nw) {
   const int64_t P = psf.size(-1), r = P / 2;
@@ -82,7 +95,7 @@ torch::Tensor render_sensor_image(const torch::Tensor& radiance, const torch::Te
   check_shapes(radiance, masks, psf, omega);
   const int64_t B = radiance.size(0), H = radiance.size(2), W = radiance.size(3);
   const int64_t Z = masks.size(1), P = psf.size(2), r = P / 2, C = omega.size(0);
-  const int64_t nh = H + 2 * r, nw = W + 2 * r;
+  const int64_t nh = fast_fft_size(H + 2 * r), nw = fast_fft_size(W + 2 * r);
   // Bands with any response (leave out the rest).
   std::vector<int64_t> bands;
   const torch::Tensor band_used = (omega.detach().abs().sum(0) > 0).cpu();
@@ -95,7 +108,7 @@ torch::Tensor render_sensor_image(const torch::Tensor& radiance, const torch::Te
   const torch::Tensor om = omega.to(radiance.dtype()).index_select(1, li);   // [C, L']
   const torch::Tensor ps = psf.to(radiance.dtype()).index_select(0, li);     // [L', Z, P, P]
   // Each band's image FFT, once. Edge replication extends the scene by r.
-  const torch::Tensor spec = torch::fft::rfft2(F::pad(rad, F::PadFuncOptions({r, r, r, r}).mode(torch::kReplicate)));
+  const torch::Tensor spec = torch::fft::rfft2(F::pad(rad, F::PadFuncOptions({r, r, r, r}).mode(torch::kReplicate)), c10::IntArrayRef{nh, nw});
   const torch::Tensor layer_used = (masks.detach().abs().sum({0, 2, 3}) > 0).cpu();
   for (int64_t z = 0; z < Z; ++z) {
     if (leave_out && !layer_used[z].item<bool>()) continue;
@@ -118,7 +131,8 @@ torch::Tensor render_sensor_image_occlusion(const torch::Tensor& radiance, const
   const int64_t Z = alphas.size(1);
   if (int64_t(layer_depths_m.size()) != Z) throw InputError("occlusion compositing: one depth per layer needed");
   const int64_t B = radiance.size(0), L = radiance.size(1), H = radiance.size(2), W = radiance.size(3);
-  const int64_t P = psf.size(2), r = P / 2, C = omega.size(0), nh = H + 2 * r, nw = W + 2 * r;
+  const int64_t P = psf.size(2), r = P / 2, C = omega.size(0), nh = fast_fft_size(H + 2 * r),
+                nw = fast_fft_size(W + 2 * r);
   std::vector<int64_t> order(static_cast<size_t>(Z));
   for (int64_t z = 0; z < Z; ++z) order[size_t(z)] = z;
   std::sort(order.begin(), order.end(), [&](int64_t a, int64_t b) { return layer_depths_m[size_t(a)] > layer_depths_m[size_t(b)]; });
@@ -135,7 +149,7 @@ torch::Tensor render_sensor_image_occlusion(const torch::Tensor& radiance, const
       const torch::Tensor a = alphas.narrow(1, z, 1);
       cum = cum + a;
       const torch::Tensor stacked = pad(torch::cat({a * I, a, cum}, 1));  // [B, 3, nh, nw]
-      const torch::Tensor conv = torch::fft::irfft2(torch::fft::rfft2(stacked) * otf(psf[l][z].to(radiance.dtype()), nh, nw),
+      const torch::Tensor conv = torch::fft::irfft2(torch::fft::rfft2(stacked, c10::IntArrayRef{nh, nw}) * otf(psf[l][z].to(radiance.dtype()), nh, nw),
                                                     c10::IntArrayRef{nh, nw})
                                      .narrow(2, r, H)
                                      .narrow(3, r, W);
@@ -154,12 +168,12 @@ torch::Tensor render_sensor_image_direct(const torch::Tensor& radiance, const to
   check_shapes(radiance, masks, psf, omega);
   const int64_t B = radiance.size(0), L = radiance.size(1), H = radiance.size(2), W = radiance.size(3);
   const int64_t Z = masks.size(1), P = psf.size(2), r = P / 2, C = omega.size(0);
-  const int64_t nh = H + 2 * r, nw = W + 2 * r;
+  const int64_t nh = fast_fft_size(H + 2 * r), nw = fast_fft_size(W + 2 * r);
   torch::Tensor out = torch::zeros({B, C, H, W}, radiance.options());
   for (int64_t l = 0; l < L; ++l) {
     const torch::Tensor padded = F::pad(radiance.narrow(1, l, 1), F::PadFuncOptions({r, r, r, r}).mode(torch::kReplicate));
     for (int64_t z = 0; z < Z; ++z) {
-      const torch::Tensor conv = torch::fft::irfft2(torch::fft::rfft2(padded) * otf(psf[l][z].to(radiance.dtype()), nh, nw),
+      const torch::Tensor conv = torch::fft::irfft2(torch::fft::rfft2(padded, c10::IntArrayRef{nh, nw}) * otf(psf[l][z].to(radiance.dtype()), nh, nw),
                                                     c10::IntArrayRef{nh, nw})
                                      .narrow(2, r, H)
                                      .narrow(3, r, W);  // [B, 1, H, W]

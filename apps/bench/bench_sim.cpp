@@ -32,7 +32,7 @@ double rel_l1_max(const torch::Tensor& a, const torch::Tensor& ref) {
 
 // The matrix products and FFTs of one forward+backward of hsd's method, as bare ops.
 void floor_work(const optics::PsfSpec& spec, int64_t layers, int64_t patch) {
-  const int64_t N = spec.doe_samples, P = spec.psf_size, r = P / 2, nh = patch + 2 * r;
+  const int64_t N = spec.doe_samples, P = spec.psf_size, r = P / 2, nh = optics::fast_fft_size(patch + 2 * r);
   const auto c = torch::TensorOptions().dtype(torch::kComplexFloat);
   const torch::Tensor field = torch::randn({N, N}, c);
   for (size_t l = 0; l < spec.wavelengths_m.size(); ++l) {
