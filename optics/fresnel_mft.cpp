@@ -48,6 +48,39 @@ torch::Tensor matrix_fourier_transform(const torch::Tensor& kernels, const torch
   return torch::bmm(b, kernels.transpose(1, 2));  // [Z, M, M]
 }
 
+namespace {
+
+struct MftIntensity : public torch::autograd::Function<MftIntensity> {
+  static torch::Tensor kernels(const torch::Tensor& tilt, const torch::Tensor& chirps) {
+    return tilt.unsqueeze(0) * chirps.unsqueeze(1);  // [Z, M, N]
+  }
+  static torch::Tensor forward(torch::autograd::AutogradContext* ctx, torch::Tensor field, torch::Tensor tilt,
+                               torch::Tensor chirps) {
+    const torch::Tensor F = matrix_fourier_transform(kernels(tilt, chirps), field);  // [Z, M, M]
+    ctx->save_for_backward({F, tilt, chirps});
+    return intensity(F);
+  }
+  static torch::autograd::variable_list backward(torch::autograd::AutogradContext* ctx,
+                                                 torch::autograd::variable_list grads) {
+    const auto saved = ctx->get_saved_variables();
+    const torch::Tensor &F = saved[0], &tilt = saved[1], &chirps = saved[2];
+    const torch::Tensor K = kernels(tilt, chirps);                    // rebuilt, not stored
+    const int64_t Z = K.size(0), M = K.size(1), N = K.size(2);
+    // I = re² + im²  ->  dL/dF = 2 gI F  (PyTorch's convention for complex gradients)
+    const torch::Tensor gF = 2.0 * grads[0] * F;
+    // F = B Kᵀ  ->  dL/dB = gF conj(K);   B = K M  ->  dL/dM = Kᴴ dL/dB
+    const torch::Tensor gB = torch::bmm(gF, K.conj());               // [Z, M, N]
+    const torch::Tensor gM = torch::mm(K.reshape({Z * M, N}).conj().t(), gB.reshape({Z * M, N}));
+    return {gM, torch::Tensor(), torch::Tensor()};
+  }
+};
+
+}  // namespace
+
+torch::Tensor mft_intensity(const torch::Tensor& tilt, const torch::Tensor& chirps, const torch::Tensor& pupil_field) {
+  return MftIntensity::apply(pupil_field, tilt, chirps);
+}
+
 torch::Tensor intensity(const torch::Tensor& field) {
   return torch::view_as_real(field).pow(2).sum(-1);
 }

@@ -49,6 +49,13 @@ torch::Tensor compute_pupil_field(const torch::Tensor& aperture, const torch::Te
 // all z, then a batched product.
 torch::Tensor matrix_fourier_transform(const torch::Tensor& kernels, const torch::Tensor& pupil_field);
 
+// |F_z|² with F_z = K_z M K_zᵀ and K_z = tilt ⊙ chirp_z (row-broadcast), as one
+// autograd node that stores only the field's output F [Z, M, M] and the small
+// factors tilt [M, N] and chirps [Z, N]: the kernels [Z, M, N] are rebuilt in
+// the backward pass instead of being kept (they are the largest tensors of the
+// PSF). Differentiable in `pupil_field` only. Returns real [Z, M, M].
+torch::Tensor mft_intensity(const torch::Tensor& tilt, const torch::Tensor& chirps, const torch::Tensor& pupil_field);
+
 // Intensity re² + im² of a complex tensor (never complex abs).
 torch::Tensor intensity(const torch::Tensor& field);
 

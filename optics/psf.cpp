@@ -108,15 +108,13 @@ struct BandContext {
 
 // One band: normalised PSFs [Z, P, P] and energy_in_window [Z] (no grad).
 std::pair<torch::Tensor, torch::Tensor> band_psf(const BandContext& b, const torch::Tensor& h) {
-  const int64_t N = b.pupil_x.size(0), P = b.psf_size, n = b.nodes, Z = int64_t(b.depths_m.size());
+  const int64_t P = b.psf_size, n = b.nodes, Z = int64_t(b.depths_m.size());
   const torch::Tensor field = compute_pupil_field(b.aperture, h, b.wavelength_m, b.refractive_index, b.complex_dtype);
-  std::vector<torch::Tensor> kz;
-  for (double z : b.depths_m) {
-    const torch::Tensor chirp = compute_defocus_chirp(b.pupil_x, b.wavelength_m, z, b.sensor_distance_m, b.complex_dtype);
-    kz.push_back(b.tilt * chirp.view({1, N}));  // [P·n, N]
-  }
-  const torch::Tensor kernels = torch::stack(kz);                               // [Z, P·n, N]
-  const torch::Tensor I = intensity(matrix_fourier_transform(kernels, field));  // [Z, P·n, P·n]
+  std::vector<torch::Tensor> chirps;
+  for (double z : b.depths_m)
+    chirps.push_back(compute_defocus_chirp(b.pupil_x, b.wavelength_m, z, b.sensor_distance_m, b.complex_dtype));
+  // |K_z M K_zᵀ|² with K_z = tilt ⊙ chirp_z: [Z, P·n, P·n]; the kernels are rebuilt in backward, not stored.
+  const torch::Tensor I = mft_intensity(b.tilt, torch::stack(chirps), field);
   // Pixel integral: Gauss–Legendre weights over each pixel's n×n nodes.
   const torch::Tensor pix = (I.view({Z, P, n, P, n}) * b.weights.view({1, 1, n, 1, n})).sum({2, 4});  // [Z, P, P]
   const torch::Tensor total = pix.sum({1, 2});                                  // [Z]
