@@ -64,13 +64,14 @@ struct MftIntensity : public torch::autograd::Function<MftIntensity> {
                                                  torch::autograd::variable_list grads) {
     const auto saved = ctx->get_saved_variables();
     const torch::Tensor &F = saved[0], &tilt = saved[1], &chirps = saved[2];
-    const torch::Tensor K = kernels(tilt, chirps);                    // rebuilt, not stored
-    const int64_t Z = K.size(0), M = K.size(1), N = K.size(2);
+    // Only conj(K) is needed: rebuilt from the conjugated factors, not stored.
+    const torch::Tensor Kc = kernels(tilt.conj().resolve_conj(), chirps.conj().resolve_conj());  // [Z, M, N]
+    const int64_t Z = Kc.size(0), M = Kc.size(1), N = Kc.size(2);
     // I = re² + im²  ->  dL/dF = 2 gI F  (PyTorch's convention for complex gradients)
     const torch::Tensor gF = 2.0 * grads[0] * F;
-    // F = B Kᵀ  ->  dL/dB = gF conj(K);   B = K M  ->  dL/dM = Kᴴ dL/dB
-    const torch::Tensor gB = torch::bmm(gF, K.conj());               // [Z, M, N]
-    const torch::Tensor gM = torch::mm(K.reshape({Z * M, N}).conj().t(), gB.reshape({Z * M, N}));
+    // F = B Kᵀ  ->  dL/dB = gF conj(K);   B = K M  ->  dL/dM = Kᴴ dL/dB = conj(K)ᵀ dL/dB
+    const torch::Tensor gB = torch::bmm(gF, Kc);  // [Z, M, N]
+    const torch::Tensor gM = torch::mm(Kc.view({Z * M, N}).t(), gB.view({Z * M, N}));
     return {gM, torch::Tensor(), torch::Tensor()};
   }
 };
