@@ -30,14 +30,41 @@ torch::Tensor compute_defocus_chirp(const torch::Tensor& pupil_x_m, double wavel
   return phasor(pupil_x_m.to(torch::kFloat64).pow(2) * (0.5 * k * curvature), complex_dtype);
 }
 
+namespace {
+
+// M = A exp(i φ), φ = wrap(k (η−1) h) formed in float64, as one autograd node:
+// dL/dh = k (η−1) Im(conj(M) g) with PyTorch's complex gradient g = ∂L/∂Re M + i ∂L/∂Im M.
+// Stores only the wrapped phase; the field is rebuilt in the backward pass.
+struct PupilField : public torch::autograd::Function<PupilField> {
+  static torch::Tensor forward(torch::autograd::AutogradContext* ctx, torch::Tensor height, torch::Tensor aperture,
+                               double phase_per_metre, int64_t complex_dtype) {
+    const auto real_dtype = c10::toRealValueType(c10::ScalarType(complex_dtype));
+    const torch::Tensor p = wrap_phase(height.to(torch::kFloat64) * phase_per_metre).to(real_dtype);
+    const torch::Tensor a = aperture.to(real_dtype);
+    ctx->save_for_backward({p, a});
+    ctx->saved_data["phase_per_metre"] = phase_per_metre;
+    ctx->saved_data["height_dtype"] = int64_t(height.scalar_type());
+    return torch::complex(a * torch::cos(p), a * torch::sin(p));
+  }
+  static torch::autograd::variable_list backward(torch::autograd::AutogradContext* ctx,
+                                                 torch::autograd::variable_list grads) {
+    const auto saved = ctx->get_saved_variables();
+    const torch::Tensor &p = saved[0], &a = saved[1];
+    const torch::Tensor g = torch::view_as_real(grads[0].resolve_conj());  // [N, N, 2]: ∂L/∂Re, ∂L/∂Im
+    // Im(conj(M) g) = A (cos φ ∂L/∂Im − sin φ ∂L/∂Re)
+    const torch::Tensor dphi = a * (torch::cos(p) * g.select(-1, 1) - torch::sin(p) * g.select(-1, 0));
+    const double scale = ctx->saved_data["phase_per_metre"].toDouble();
+    const auto hdt = c10::ScalarType(ctx->saved_data["height_dtype"].toInt());
+    return {(dphi.to(torch::kFloat64) * scale).to(hdt), torch::Tensor(), torch::Tensor(), torch::Tensor()};
+  }
+};
+
+}  // namespace
+
 torch::Tensor compute_pupil_field(const torch::Tensor& aperture, const torch::Tensor& height_m,
                                   double wavelength_m, double refractive_index, c10::ScalarType complex_dtype) {
   const double k = 2.0 * M_PI / wavelength_m;
-  const torch::Tensor doe_phase = height_m.to(torch::kFloat64) * (k * (refractive_index - 1.0));
-  const auto real_dtype = c10::toRealValueType(complex_dtype);
-  const torch::Tensor p = wrap_phase(doe_phase).to(real_dtype);
-  const torch::Tensor a = aperture.to(real_dtype);
-  return torch::complex(a * torch::cos(p), a * torch::sin(p));
+  return PupilField::apply(height_m, aperture, k * (refractive_index - 1.0), int64_t(complex_dtype));
 }
 
 torch::Tensor matrix_fourier_transform(const torch::Tensor& kernels, const torch::Tensor& pupil_field) {

@@ -51,6 +51,7 @@ PsfSimulator::PsfSimulator(PsfSpec spec) : spec_(std::move(spec)) {
   const auto f64 = torch::TensorOptions().dtype(torch::kFloat64).device(s.device);
   aperture_ = aperture_transmission(s.doe_samples, s.doe_pitch_m, s.aperture_diameter_m, s.aperture_shape).to(f64);
   aperture_energy_ = aperture_.pow(2).sum().item<double>();
+  aperture_real_ = aperture_.to(s.real_dtype);
   if (!(aperture_energy_ > 0.0)) throw InputError("PSF: the aperture covers no DOE sample");
   pupil_x_ = centred_coordinates(s.doe_samples, s.doe_pitch_m).to(f64);
   const torch::Tensor pixel_x = centred_coordinates(s.psf_size, s.pixel_pitch_m);  // [P]
@@ -174,7 +175,7 @@ BandContext make_band_context(const PsfSpec& s, const torch::Tensor& aperture, c
 std::pair<torch::Tensor, torch::Tensor> PsfSimulator::compute_band(int64_t band, const torch::Tensor& h,
                                                                    const std::vector<int64_t>& zi) const {
   const size_t l = size_t(band);
-  return band_psf(make_band_context(spec_, aperture_, tilt_[l], weights_[l], pupil_x_, aperture_energy_,
+  return band_psf(make_band_context(spec_, aperture_real_, tilt_[l], weights_[l], pupil_x_, aperture_energy_,
                                     complex_dtype(), l, zi),
                   h);
 }
@@ -199,7 +200,7 @@ PsfStack PsfSimulator::compute(const torch::Tensor& height_m, const std::vector<
   for (int64_t l = 0; l < int64_t(s.wavelengths_m.size()); ++l) {
     torch::Tensor psf, energy;
     if (checkpoint) {
-      const auto r = RecomputedBand::apply(h, make_band_context(spec_, aperture_, tilt_[size_t(l)], weights_[size_t(l)],
+      const auto r = RecomputedBand::apply(h, make_band_context(spec_, aperture_real_, tilt_[size_t(l)], weights_[size_t(l)],
                                                                 pupil_x_, aperture_energy_, complex_dtype(), size_t(l), zi));
       psf = r[0];
       energy = r[1];

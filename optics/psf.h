@@ -72,6 +72,7 @@ class PsfSimulator {
  private:
   PsfSpec spec_;
   torch::Tensor aperture_;              // float64 [N, N] on device
+  torch::Tensor aperture_real_;         // the same in the compute dtype (shared by every band)
   torch::Tensor pupil_x_;               // float64 [N]
   std::vector<torch::Tensor> tilt_;     // per band: complex [P·n_l, N]
   std::vector<torch::Tensor> weights_;  // per band: real [n_l, n_l] (outer product of GL weights)
