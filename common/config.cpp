@@ -99,6 +99,8 @@ OpticsConfig parse_optics(const JsonReader& r) {
   o.psf_backward = r.get_string("psf_backward", o.psf_backward);
   if (o.psf_backward != "store" && o.psf_backward != "recompute")
     r.fail("psf_backward", "expected \"store\" or \"recompute\", got \"" + o.psf_backward + "\"");
+  o.mft_rank_tol = r.get_number("mft_rank_tol", o.mft_rank_tol);
+  if (o.mft_rank_tol < 0.0 || o.mft_rank_tol > 1e-2) r.fail("mft_rank_tol", "must be in [0, 1e-2] (0 = exact)");
   o.energy_warn_threshold = r.get_number("energy_warn_threshold", o.energy_warn_threshold);
   if (!(o.energy_warn_threshold >= 0.0 && o.energy_warn_threshold <= 1.0))
     r.fail("energy_warn_threshold", "must be in [0, 1]");

@@ -43,6 +43,8 @@ struct OpticsConfig {
   // "store": autograd keeps every band's intermediates (fastest); "recompute":
   // keep only the height map and recompute each band in the backward pass (lean).
   std::string psf_backward = "store";
+  // Relative singular-value cut of the low-rank window kernels (optics/fresnel_mft.h); 0 = exact MFT.
+  double mft_rank_tol = 1e-6;
   double energy_warn_threshold = 0.5;  // warn when energy_in_window of a (λ, z) falls below this
   DoeConfig doe;
 

@@ -103,7 +103,54 @@ struct MftIntensity : public torch::autograd::Function<MftIntensity> {
   }
 };
 
+struct MftIntensityLowRank : public torch::autograd::Function<MftIntensityLowRank> {
+  static torch::Tensor forward(torch::autograd::AutogradContext* ctx, torch::Tensor field, torch::Tensor left,
+                               torch::Tensor right, torch::Tensor chirps) {
+    const int64_t Z = chirps.size(0), R = right.size(0), N = right.size(1);
+    const torch::Tensor w = right.unsqueeze(0) * chirps.unsqueeze(1);                    // [Z, r, N]
+    const torch::Tensor b = torch::mm(w.reshape({Z * R, N}), field).view({Z, R, N});     // W_z M
+    const torch::Tensor c = torch::bmm(b, w.transpose(1, 2));                            // [Z, r, r]
+    // F_z = L C_z Lᵀ, written with 3-D × 2-D products only (LibTorch folds those
+    // into one GEMM; 2-D × 3-D broadcasting runs per batch and is ~20× slower):
+    // G = C Lᵀ [Z, r, M], F = (Gᵀ Lᵀ)ᵀ.
+    const torch::Tensor g = torch::matmul(c, left.t());
+    const torch::Tensor F = torch::matmul(g.transpose(1, 2), left.t()).transpose(1, 2).contiguous();  // [Z, M, M]
+    ctx->save_for_backward({F, left, right, chirps});
+    return intensity(F);
+  }
+  static torch::autograd::variable_list backward(torch::autograd::AutogradContext* ctx,
+                                                 torch::autograd::variable_list grads) {
+    const auto saved = ctx->get_saved_variables();
+    const torch::Tensor &F = saved[0], &left = saved[1], &right = saved[2], &chirps = saved[3];
+    const int64_t Z = chirps.size(0), R = right.size(0), N = right.size(1);
+    const torch::Tensor gF = 2.0 * grads[0] * F;                                         // I = re² + im²
+    // F = L C Lᵀ -> dC = Lᴴ dF conj(L);  C = B Wᵀ -> dB = dC conj(W);  B = W M -> dM = Wᴴ dB
+    const torch::Tensor lc = left.conj().resolve_conj();
+    const torch::Tensor t1 = torch::matmul(gF, lc);                                      // [Z, M, r]
+    const torch::Tensor gC = torch::matmul(t1.transpose(1, 2), lc).transpose(1, 2);     // Lᴴ dF conj(L) = (t1ᵀ conj(L))ᵀ
+    const torch::Tensor wc = right.conj().resolve_conj().unsqueeze(0) * chirps.conj().resolve_conj().unsqueeze(1);
+    const torch::Tensor gB = torch::bmm(gC, wc);                                         // [Z, r, N]
+    const torch::Tensor gM = torch::mm(wc.view({Z * R, N}).t(), gB.view({Z * R, N}));
+    return {gM, torch::Tensor(), torch::Tensor(), torch::Tensor()};
+  }
+};
+
 }  // namespace
+
+LowRankKernel factor_tilt_kernel(const torch::Tensor& tilt, double rel_tol, c10::ScalarType complex_dtype) {
+  const auto svd = torch::linalg_svd(tilt.to(torch::kComplexDouble), /*full_matrices=*/false);
+  const torch::Tensor U = std::get<0>(svd), S = std::get<1>(svd), Vh = std::get<2>(svd);
+  const int64_t r = std::max<int64_t>(1, (S > rel_tol * S[0].item<double>()).sum().item<int64_t>());
+  LowRankKernel k;
+  k.left = (U.narrow(1, 0, r) * S.narrow(0, 0, r).to(torch::kComplexDouble).view({1, r})).to(complex_dtype).contiguous();
+  k.right = Vh.narrow(0, 0, r).to(complex_dtype).contiguous();
+  return k;
+}
+
+torch::Tensor mft_intensity_low_rank(const LowRankKernel& kernel, const torch::Tensor& chirps,
+                                     const torch::Tensor& pupil_field) {
+  return MftIntensityLowRank::apply(pupil_field, kernel.left, kernel.right, chirps);
+}
 
 torch::Tensor mft_intensity(const torch::Tensor& tilt, const torch::Tensor& chirps, const torch::Tensor& pupil_field) {
   return MftIntensity::apply(pupil_field, tilt, chirps);

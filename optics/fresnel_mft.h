@@ -56,6 +56,23 @@ torch::Tensor matrix_fourier_transform(const torch::Tensor& kernels, const torch
 // PSF). Differentiable in `pupil_field` only. Returns real [Z, M, M].
 torch::Tensor mft_intensity(const torch::Tensor& tilt, const torch::Tensor& chirps, const torch::Tensor& pupil_field);
 
+// Low-rank form of the tilt kernel on the window: T ≈ left · right with
+// left [M, r] = U_r Σ_r and right [r, N] = V_rᴴ from the SVD of T (computed in
+// complex128), keeping singular values above rel_tol · σ_max. Restricted to a
+// window of half-width X, exp(−i2π x ξ/(λs)) has numerical rank close to the
+// time-bandwidth product 2X·D/(λs) (prolate spheroidal theory), far below the
+// M = P·n rows, so the products below cost r·N² instead of M·N².
+struct LowRankKernel {
+  torch::Tensor left, right;  // complex [M, r], [r, N] in the requested dtype
+};
+LowRankKernel factor_tilt_kernel(const torch::Tensor& tilt, double rel_tol, c10::ScalarType complex_dtype);
+
+// |F_z|² as mft_intensity, with K_z ≈ left · (right ⊙ chirp_z):
+// F_z = left (W_z M W_zᵀ) leftᵀ, W_z = right ⊙ chirp_z. One autograd node that
+// stores F and the small factors; differentiable in `pupil_field` only.
+torch::Tensor mft_intensity_low_rank(const LowRankKernel& kernel, const torch::Tensor& chirps,
+                                     const torch::Tensor& pupil_field);
+
 // Intensity re² + im² of a complex tensor (never complex abs).
 torch::Tensor intensity(const torch::Tensor& field);
 

@@ -26,6 +26,7 @@ PsfSpec make_psf_spec(const OpticsConfig& cfg, const Material& material, torch::
   s.real_dtype = cfg.precision == "float64" ? torch::kFloat64 : torch::kFloat32;
   s.device = device;
   s.recompute_in_backward = cfg.psf_backward == "recompute";
+  s.mft_rank_tol = cfg.mft_rank_tol;
   for (double w : s.wavelengths_m) {
     if (cfg.pixel_quadrature_nodes > 0) {
       s.pixel_nodes.push_back(int(cfg.pixel_quadrature_nodes));
@@ -60,7 +61,14 @@ PsfSimulator::PsfSimulator(PsfSpec spec) : spec_(std::move(spec)) {
     const Quadrature1D q = gauss_legendre(s.pixel_nodes[l]);
     const torch::Tensor nodes = torch::tensor(q.nodes, torch::kFloat64) * s.pixel_pitch_m;    // [n]
     const torch::Tensor sensor_x = (pixel_x.view({-1, 1}) + nodes.view({1, -1})).reshape(-1);  // [P·n], pixel-major
-    tilt_.push_back(compute_tilt_kernel(sensor_x.to(f64), pupil_x_, s.wavelengths_m[l], s.sensor_distance_m, cdt));
+    const torch::Tensor tilt64 =
+        compute_tilt_kernel(sensor_x.to(f64), pupil_x_, s.wavelengths_m[l], s.sensor_distance_m, torch::kComplexDouble);
+    tilt_.push_back(tilt64.to(cdt));
+    if (s.mft_rank_tol > 0.0) {
+      const LowRankKernel k = factor_tilt_kernel(tilt64, s.mft_rank_tol, cdt);
+      left_.push_back(k.left);
+      right_.push_back(k.right);
+    }
     const torch::Tensor w = torch::tensor(q.weights, torch::kFloat64);
     weights_.push_back(torch::outer(w, w).to(torch::TensorOptions().dtype(s.real_dtype).device(s.device)));
   }
@@ -72,7 +80,7 @@ namespace {
 // a recomputation in the backward pass does not depend on the simulator object
 // still being alive.
 struct BandContext {
-  torch::Tensor aperture, tilt, weights, pupil_x;
+  torch::Tensor aperture, tilt, left, right, weights, pupil_x;  // left/right undefined: exact MFT
   double wavelength_m = 0, refractive_index = 0, sensor_distance_m = 0, pixel_pitch_m = 0, doe_pitch_m = 0,
          aperture_energy = 0;
   int64_t psf_size = 0, nodes = 0;
@@ -83,6 +91,8 @@ struct BandContext {
     auto& d = ctx->saved_data;
     d["aperture"] = aperture;
     d["tilt"] = tilt;
+    d["left"] = left;
+    d["right"] = right;
     d["weights"] = weights;
     d["pupil_x"] = pupil_x;
     d["scalars"] = c10::List<double>({wavelength_m, refractive_index, sensor_distance_m, pixel_pitch_m, doe_pitch_m,
@@ -95,6 +105,8 @@ struct BandContext {
     BandContext b;
     b.aperture = d["aperture"].toTensor();
     b.tilt = d["tilt"].toTensor();
+    if (d["left"].isTensor()) b.left = d["left"].toTensor();
+    if (d["right"].isTensor()) b.right = d["right"].toTensor();
     b.weights = d["weights"].toTensor();
     b.pupil_x = d["pupil_x"].toTensor();
     const auto sc = d["scalars"].toDoubleVector();
@@ -115,7 +127,8 @@ std::pair<torch::Tensor, torch::Tensor> band_psf(const BandContext& b, const tor
   for (double z : b.depths_m)
     chirps.push_back(compute_defocus_chirp(b.pupil_x, b.wavelength_m, z, b.sensor_distance_m, b.complex_dtype));
   // |K_z M K_zᵀ|² with K_z = tilt ⊙ chirp_z: [Z, P·n, P·n]; the kernels are rebuilt in backward, not stored.
-  const torch::Tensor I = mft_intensity(b.tilt, torch::stack(chirps), field);
+  const torch::Tensor I = b.left.defined() ? mft_intensity_low_rank({b.left, b.right}, torch::stack(chirps), field)
+                                           : mft_intensity(b.tilt, torch::stack(chirps), field);
   // Pixel integral: Gauss–Legendre weights over each pixel's n×n nodes.
   const torch::Tensor pix = (I.view({Z, P, n, P, n}) * b.weights.view({1, 1, n, 1, n})).sum({2, 4});  // [Z, P, P]
   const torch::Tensor total = pix.sum({1, 2});                                  // [Z]
@@ -158,10 +171,10 @@ struct RecomputedBand : public torch::autograd::Function<RecomputedBand> {
 };
 
 BandContext make_band_context(const PsfSpec& s, const torch::Tensor& aperture, const torch::Tensor& tilt,
-                              const torch::Tensor& weights, const torch::Tensor& pupil_x, double aperture_energy,
+                              const torch::Tensor& left, const torch::Tensor& right, const torch::Tensor& weights, const torch::Tensor& pupil_x, double aperture_energy,
                               c10::ScalarType cdt, size_t l, const std::vector<int64_t>& zi) {
   BandContext b;
-  b.aperture = aperture, b.tilt = tilt, b.weights = weights, b.pupil_x = pupil_x;
+  b.aperture = aperture, b.tilt = tilt, b.left = left, b.right = right, b.weights = weights, b.pupil_x = pupil_x;
   b.wavelength_m = s.wavelengths_m[l], b.refractive_index = s.refractive_index[l];
   b.sensor_distance_m = s.sensor_distance_m, b.pixel_pitch_m = s.pixel_pitch_m, b.doe_pitch_m = s.doe_pitch_m;
   b.aperture_energy = aperture_energy;
@@ -170,12 +183,22 @@ BandContext make_band_context(const PsfSpec& s, const torch::Tensor& aperture, c
   return b;
 }
 
+torch::Tensor low_rank(const std::vector<torch::Tensor>& factors, size_t l) {
+  return factors.empty() ? torch::Tensor() : factors[l];
+}
+
 }  // namespace
+
+std::vector<int64_t> PsfSimulator::kernel_ranks() const {
+  std::vector<int64_t> r;
+  for (size_t l = 0; l < tilt_.size(); ++l) r.push_back(left_.empty() ? tilt_[l].size(0) : left_[l].size(1));
+  return r;
+}
 
 std::pair<torch::Tensor, torch::Tensor> PsfSimulator::compute_band(int64_t band, const torch::Tensor& h,
                                                                    const std::vector<int64_t>& zi) const {
   const size_t l = size_t(band);
-  return band_psf(make_band_context(spec_, aperture_real_, tilt_[l], weights_[l], pupil_x_, aperture_energy_,
+  return band_psf(make_band_context(spec_, aperture_real_, tilt_[l], low_rank(left_, l), low_rank(right_, l), weights_[l], pupil_x_, aperture_energy_,
                                     complex_dtype(), l, zi),
                   h);
 }
@@ -200,7 +223,8 @@ PsfStack PsfSimulator::compute(const torch::Tensor& height_m, const std::vector<
   for (int64_t l = 0; l < int64_t(s.wavelengths_m.size()); ++l) {
     torch::Tensor psf, energy;
     if (checkpoint) {
-      const auto r = RecomputedBand::apply(h, make_band_context(spec_, aperture_real_, tilt_[size_t(l)], weights_[size_t(l)],
+      const auto r = RecomputedBand::apply(h, make_band_context(spec_, aperture_real_, tilt_[size_t(l)], low_rank(left_, size_t(l)),
+                                                                low_rank(right_, size_t(l)), weights_[size_t(l)],
                                                                 pupil_x_, aperture_energy_, complex_dtype(), size_t(l), zi));
       psf = r[0];
       energy = r[1];

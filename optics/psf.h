@@ -39,6 +39,9 @@ struct PsfSpec {
   // true: only the height map is stored and each band is recomputed in the
   // backward pass (about 1.5x the time of forward+backward, a fraction of the memory).
   bool recompute_in_backward = false;
+  // Relative singular-value cut of the low-rank tilt kernels (fresnel_mft.h);
+  // 0 = the exact matrix Fourier transform.
+  double mft_rank_tol = 1e-6;
 };
 
 // Builds the spec from the config: indices from the material (warns outside its
@@ -67,6 +70,8 @@ class PsfSimulator {
 
   const PsfSpec& spec() const { return spec_; }
   const torch::Tensor& aperture() const { return aperture_; }  // float64 [N, N]
+  // Rank kept for each band's tilt kernel (its row count M when exact).
+  std::vector<int64_t> kernel_ranks() const;
   torch::ScalarType complex_dtype() const;
 
  private:
@@ -74,7 +79,8 @@ class PsfSimulator {
   torch::Tensor aperture_;              // float64 [N, N] on device
   torch::Tensor aperture_real_;         // the same in the compute dtype (shared by every band)
   torch::Tensor pupil_x_;               // float64 [N]
-  std::vector<torch::Tensor> tilt_;     // per band: complex [P·n_l, N]
+  std::vector<torch::Tensor> tilt_;     // per band: complex [P·n_l, N] (exact path)
+  std::vector<torch::Tensor> left_, right_;  // per band: low-rank factors of tilt_ (if mft_rank_tol > 0)
   std::vector<torch::Tensor> weights_;  // per band: real [n_l, n_l] (outer product of GL weights)
   double aperture_energy_ = 0.0;        // Σ A² (δ² units)
 };

@@ -59,6 +59,7 @@ int bench_psf(const Config& cfg, const AppArgs& args, BenchOutput& out) {
   auto ref_spec = spec;
   ref_spec.real_dtype = torch::kFloat64;
   ref_spec.pixel_nodes.assign(spec.pixel_nodes.size(), 8);
+  ref_spec.mft_rank_tol = 0.0;  // exact matrix Fourier transform
   torch::Tensor ref;
   {
     torch::NoGradGuard g;

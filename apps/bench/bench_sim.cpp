@@ -33,25 +33,36 @@ double rel_l1_max(const torch::Tensor& a, const torch::Tensor& ref) {
 // The matrix products and FFTs of one forward+backward of hsd's method, as bare
 // batched ops on inputs made beforehand (so the floor times no allocation of inputs).
 struct FloorWork {
-  std::vector<torch::Tensor> kernels;  // per band [Z, M, N]
+  std::vector<torch::Tensor> kernels;  // per band [Z, r, N] (r = the kernel's rank, M when exact)
+  std::vector<torch::Tensor> lefts;    // per band [M, r] (undefined when exact)
   torch::Tensor field, image, psf_pad, image_grad;
   int64_t nh = 0, layers = 0;
-  FloorWork(const optics::PsfSpec& spec, int64_t layers_, int64_t patch) : layers(layers_) {
+  FloorWork(const optics::PsfSpec& spec, const std::vector<int64_t>& ranks, int64_t layers_, int64_t patch)
+      : layers(layers_) {
     const int64_t N = spec.doe_samples, P = spec.psf_size, r = P / 2, L = int64_t(spec.wavelengths_m.size());
     nh = optics::fast_fft_size(patch + 2 * r);
     const auto c = torch::TensorOptions().dtype(torch::kComplexFloat);
     field = torch::randn({N, N}, c);
-    for (int n : spec.pixel_nodes) kernels.push_back(torch::randn({layers, P * n, N}, c));
+    for (size_t l = 0; l < ranks.size(); ++l) {
+      const int64_t M = P * spec.pixel_nodes[l];
+      kernels.push_back(torch::randn({layers, ranks[l], N}, c));
+      lefts.push_back(ranks[l] < M ? torch::randn({M, ranks[l]}, c) : torch::Tensor());
+    }
     image = torch::randn({1, L, nh, nh});
     psf_pad = torch::randn({L, layers, nh, nh});
     image_grad = torch::randn({1, 3 * layers, nh, nh / 2 + 1}, c);
   }
   void run() const {
     const int64_t N = field.size(0);
-    for (const auto& k : kernels) {
+    for (size_t l = 0; l < kernels.size(); ++l) {
+      const torch::Tensor& k = kernels[l];
       const int64_t Z = k.size(0), M = k.size(1);
       const torch::Tensor b = torch::mm(k.view({Z * M, N}), field).view({Z, M, N});  // forward GEMM
-      const torch::Tensor f = torch::bmm(b, k.transpose(1, 2));                       // forward bmm
+      torch::Tensor f = torch::bmm(b, k.transpose(1, 2));                             // forward bmm
+      if (lefts[l].defined()) {                                                       // low rank: L C Lᵀ and back
+        const torch::Tensor full = torch::matmul(torch::matmul(lefts[l], f), lefts[l].t());
+        f = torch::matmul(torch::matmul(lefts[l].t(), full), lefts[l]);
+      }
       const torch::Tensor gb = torch::bmm(f, k);                                      // backward bmm
       torch::mm(k.view({Z * M, N}).t(), gb.view({Z * M, N}));                        // backward GEMM
     }
@@ -132,7 +143,7 @@ int bench_sim(Config cfg, const AppArgs& args, BenchOutput& out) {
   log::info("hsd, 1-layer scene ...");
   const double t_one = median_seconds(hsd_step(depth_one), repeats);
   log::info("floor (bare matrix products and FFTs) ...");
-  const FloorWork floor(spec, depths, patch);
+  const FloorWork floor(spec, sim.kernel_ranks(), depths, patch);
   const double t_floor = median_seconds([&] { floor.run(); }, repeats);
   double t_base = 0.0, peak_base = 0.0;
   if (!args.has("--no-baseline")) {
@@ -148,6 +159,7 @@ int bench_sim(Config cfg, const AppArgs& args, BenchOutput& out) {
     auto ref_spec = spec;
     ref_spec.real_dtype = torch::kFloat64;
     ref_spec.pixel_nodes.assign(spec.pixel_nodes.size(), 8);
+    ref_spec.mft_rank_tol = 0.0;
     ref = optics::PsfSimulator(ref_spec).compute(h0).psf;
     err_hsd = rel_l1_max(sim.compute(h0).psf, ref);
     if (!args.has("--no-baseline")) err_base = rel_l1_max(baseline_fft_psf(spec, aperture, h0), ref);
@@ -162,6 +174,7 @@ int bench_sim(Config cfg, const AppArgs& args, BenchOutput& out) {
                   {"pupil", pupil},
                   {"repeats", repeats},
                   {"pixel_nodes", spec.pixel_nodes},
+                  {"kernel_ranks", sim.kernel_ranks()},
                   {"seconds_fwd_bwd", t_all},
                   {"seconds_fwd_bwd_one_layer", t_one},
                   {"one_layer_speedup", t_all / t_one},
