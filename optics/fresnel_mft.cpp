@@ -110,11 +110,13 @@ struct MftIntensityLowRank : public torch::autograd::Function<MftIntensityLowRan
     const torch::Tensor w = right.unsqueeze(0) * chirps.unsqueeze(1);                    // [Z, r, N]
     const torch::Tensor b = torch::mm(w.reshape({Z * R, N}), field).view({Z, R, N});     // W_z M
     const torch::Tensor c = torch::bmm(b, w.transpose(1, 2));                            // [Z, r, r]
-    // F_z = L C_z Lᵀ, written with 3-D × 2-D products only (LibTorch folds those
-    // into one GEMM; 2-D × 3-D broadcasting runs per batch and is ~20× slower):
-    // G = C Lᵀ [Z, r, M], F = (Gᵀ Lᵀ)ᵀ.
-    const torch::Tensor g = torch::matmul(c, left.t());
-    const torch::Tensor F = torch::matmul(g.transpose(1, 2), left.t()).transpose(1, 2).contiguous();  // [Z, M, M]
+    const int64_t M = left.size(0);
+    // F_z = L C_z Lᵀ as two plain 2-D GEMMs over all z (broadcast matmul/bmm of
+    // these shapes take LibTorch's slow per-batch path, ~10-20× slower):
+    // G = C Lᵀ as [Z·r, r] x [r, M]; F = L [G_1 ... G_Z] as [M, r] x [r, Z·M].
+    const torch::Tensor g = torch::mm(c.reshape({Z * R, R}), left.t()).view({Z, R, M});
+    const torch::Tensor F =
+        torch::mm(left, g.permute({1, 0, 2}).reshape({R, Z * M})).view({M, Z, M}).permute({1, 0, 2}).contiguous();
     ctx->save_for_backward({F, left, right, chirps});
     return intensity(F);
   }
@@ -126,8 +128,11 @@ struct MftIntensityLowRank : public torch::autograd::Function<MftIntensityLowRan
     const torch::Tensor gF = 2.0 * grads[0] * F;                                         // I = re² + im²
     // F = L C Lᵀ -> dC = Lᴴ dF conj(L);  C = B Wᵀ -> dB = dC conj(W);  B = W M -> dM = Wᴴ dB
     const torch::Tensor lc = left.conj().resolve_conj();
-    const torch::Tensor t1 = torch::matmul(gF, lc);                                      // [Z, M, r]
-    const torch::Tensor gC = torch::matmul(t1.transpose(1, 2), lc).transpose(1, 2);     // Lᴴ dF conj(L) = (t1ᵀ conj(L))ᵀ
+    const int64_t M = left.size(0);
+    // dC_z = Lᴴ dF_z conj(L) = conj(L)ᵀ (dF_z conj(L)), as two 2-D GEMMs over all z.
+    const torch::Tensor t1 = torch::mm(gF.reshape({Z * M, M}), lc).view({Z, M, R});
+    const torch::Tensor gC =
+        torch::mm(lc.t(), t1.permute({1, 0, 2}).reshape({M, Z * R})).view({R, Z, R}).permute({1, 0, 2}).contiguous();
     const torch::Tensor wc = right.conj().resolve_conj().unsqueeze(0) * chirps.conj().resolve_conj().unsqueeze(1);
     const torch::Tensor gB = torch::bmm(gC, wc);                                         // [Z, r, N]
     const torch::Tensor gM = torch::mm(wc.view({Z * R, N}).t(), gB.view({Z * R, N}));
