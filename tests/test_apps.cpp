@@ -89,30 +89,23 @@ TEST_CASE("hsd_psf writes the contract's psf.pt and atlas and config", "[app]") 
 
 TEST_CASE("bad input is exit 2 with one line naming the key or file", "[app]") {
   const std::string out = (fs::temp_directory_path() / "hsd_test_bad_out").string();
-  Run r = run("hsd_psf --config configs/tiny.json --set optics.psf_size=4 --out " + out);
-  CHECK(r.code == 2);
-  CHECK_THAT(r.err, Catch::Contains("optics.psf_size"));
-  CHECK(lines(r.err) == 1);
-  r = run("hsd_psf --config configs/tiny.json --set optics.colour=1 --out " + out);
-  CHECK(r.code == 2);
-  CHECK_THAT(r.err, Catch::Contains("optics.colour"));
-  r = run("hsd_psf --config nonexistent.json --out " + out);
-  CHECK(r.code == 2);
-  CHECK_THAT(r.err, Catch::Contains("nonexistent.json"));
-  r = run("hsd_psf --config configs/tiny.json");
-  CHECK(r.code == 2);
-  CHECK_THAT(r.err, Catch::Contains("--out"));
-  r = run("hsd_psf --config configs/tiny.json --bogus --out " + out);
-  CHECK(r.code == 2);
-  CHECK_THAT(r.err, Catch::Contains("--bogus"));
-  r = run("hsd_psf --config configs/tiny.json --set optics.doe.init=file:/nonexistent.pt --out " + out);
-  CHECK(r.code == 2);
-  CHECK_THAT(r.err, Catch::Contains("/nonexistent.pt"));
-  CHECK(lines(r.err) == 1);
-  r = run("hsd_psf --config configs/tiny.json --set optics.doe.init=fisher --set optics.doe.fisher_path=/none.pt --out " + out);
-  CHECK(r.code == 2);
-  CHECK_THAT(r.err, Catch::Contains("hsd_fisher"));
-  CHECK(lines(r.err) == 1);
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"--config configs/tiny.json --set optics.psf_size=4 --out " + out, "optics.psf_size"},
+      {"--config configs/tiny.json --set optics.colour=1 --out " + out, "optics.colour"},
+      {"--config nonexistent.json --out " + out, "nonexistent.json"},
+      {"--config configs/tiny.json", "--out"},
+      {"--config configs/tiny.json --bogus --out " + out, "--bogus"},
+      {"--config configs/tiny.json --set optics.doe.init=file:/nonexistent.pt --out " + out, "/nonexistent.pt"},
+      {"--config configs/tiny.json --set optics.doe.init=fisher --set optics.doe.fisher_path=/none.pt --out " + out,
+       "hsd_fisher"},
+  };
+  for (const auto& [args, names] : cases) {
+    const Run r = run("hsd_psf " + args);
+    INFO("hsd_psf " << args << "\nstderr: " << r.err);
+    CHECK(r.code == 2);
+    CHECK_THAT(r.err, Catch::Contains(names));
+    CHECK(lines(r.err) == 1);
+  }
   CHECK(run("hsd_psf --help").code == 0);
 }
 
