@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <thread>
+#include <unistd.h>
 
 #include <torch/torch.h>
 
@@ -79,7 +81,14 @@ AppArgs parse_args(const AppSpec& spec, int argc, char** argv) {
   return a;
 }
 
+void use_passive_openmp(char** argv) {
+  if (std::getenv("OMP_WAIT_POLICY") != nullptr) return;
+  ::setenv("OMP_WAIT_POLICY", "PASSIVE", 1);
+  ::execv("/proc/self/exe", argv);  // returns only on failure: carry on as we are
+}
+
 int run_app(const AppSpec& spec, int argc, char** argv, const std::function<int(const AppArgs&)>& body) {
+  use_passive_openmp(argv);
   try {
     AppArgs args = parse_args(spec, argc, argv);
     if (args.switches.count("--help")) {

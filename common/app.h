@@ -38,7 +38,16 @@ struct AppSpec {
 // Parses argv per the contract; InputError for unknown flags or missing values.
 AppArgs parse_args(const AppSpec& spec, int argc, char** argv);
 
+// LibTorch's OpenMP workers spin-wait after each parallel region while
+// OpenBLAS's own threads run the next matrix product, so on few cores the two
+// pools fight (measured: PSF forward+backward 1.7x slower). libgomp reads
+// OMP_WAIT_POLICY only when it loads, so if the variable is unset this sets it
+// to PASSIVE and re-executes the program (/proc/self/exe) once. A value the
+// user set is kept. Returns only if no re-exec happened.
+void use_passive_openmp(char** argv);
+
 // Runs body(args) and maps exceptions to exit codes with one line on stderr.
+// Calls use_passive_openmp first.
 int run_app(const AppSpec& spec, int argc, char** argv, const std::function<int(const AppArgs&)>& body);
 
 // Sets torch's intra-op threads (0 = all cores) and prints "threads: N".

@@ -4,9 +4,11 @@
 #include <catch2/catch.hpp>
 #include <torch/torch.h>
 
+#include "common/app.h"
 #include "common/log.h"
 
 int main(int argc, char** argv) {
+  hsd::use_passive_openmp(argv);  // see common/app.h
   torch::set_num_threads(2);
   hsd::log::set_quiet(true);
   return Catch::Session().run(argc, argv);
