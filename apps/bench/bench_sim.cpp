@@ -35,7 +35,7 @@ double rel_l1_max(const torch::Tensor& a, const torch::Tensor& ref) {
 struct FloorWork {
   std::vector<torch::Tensor> kernels;  // per band [Z, r, N] (r = the kernel's rank, M when exact)
   std::vector<torch::Tensor> lefts;    // per band [M, r] (undefined when exact)
-  torch::Tensor field, image, psf_pad, image_grad;
+  torch::Tensor field, image, psf, ew, eh, image_grad;
   int64_t nh = 0, layers = 0;
   FloorWork(const optics::PsfSpec& spec, const std::vector<int64_t>& ranks, int64_t layers_, int64_t patch)
       : layers(layers_) {
@@ -49,7 +49,9 @@ struct FloorWork {
       lefts.push_back(ranks[l] < M ? torch::randn({M, ranks[l]}, c) : torch::Tensor());
     }
     image = torch::randn({1, L, nh, nh});
-    psf_pad = torch::randn({L, layers, nh, nh});
+    psf = torch::randn({L * layers * P, P}, c);     // the PSFs (as complex, as the method casts them)
+    ew = torch::randn({P, nh / 2 + 1}, c);          // DFT matrices of the OTFs
+    eh = torch::randn({nh, P}, c);
     image_grad = torch::randn({1, 3 * layers, nh, nh / 2 + 1}, c);
   }
   void run() const {
@@ -67,10 +69,13 @@ struct FloorWork {
       torch::mm(k.view({Z * M, N}).t(), gb.view({Z * M, N}));                        // backward GEMM
     }
     torch::fft::rfft2(image);                                                         // band FFTs
-    const torch::Tensor otf = torch::fft::rfft2(psf_pad);                             // OTFs
+    const int64_t P = psf.size(1), LZ = psf.size(0) / P, nwr = ew.size(1);
+    const torch::Tensor t = torch::mm(psf, ew).view({LZ, P, nwr});                    // OTFs: E_h K E_wᵀ
+    const torch::Tensor otf = torch::mm(eh, t.permute({1, 0, 2}).reshape({P, LZ * nwr}));
+    torch::mm(eh.t(), otf);                                                           // their backward
+    torch::mm(psf, ew);
     const torch::Tensor out = torch::fft::irfft2(image_grad, c10::IntArrayRef{nh, nh});  // 3 inverse FFTs per layer
     torch::fft::rfft2(out);                                                           // their backward
-    torch::fft::irfft2(otf, c10::IntArrayRef{nh, nh});                                // backward of the OTF FFTs
   }
 };
 
