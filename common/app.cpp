@@ -5,6 +5,9 @@
 #include <cstdlib>
 #include <thread>
 #include <unistd.h>
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 
 #include <torch/torch.h>
 
@@ -87,8 +90,16 @@ void use_passive_openmp(char** argv) {
   ::execv("/proc/self/exe", argv);  // returns only on failure: carry on as we are
 }
 
+void keep_freed_memory() {
+#ifdef __GLIBC__
+  mallopt(M_MMAP_THRESHOLD, 32 << 20);
+  mallopt(M_TRIM_THRESHOLD, 1 << 30);
+#endif
+}
+
 int run_app(const AppSpec& spec, int argc, char** argv, const std::function<int(const AppArgs&)>& body) {
   use_passive_openmp(argv);
+  keep_freed_memory();
   try {
     AppArgs args = parse_args(spec, argc, argv);
     if (args.switches.count("--help")) {

@@ -70,7 +70,7 @@ PsfSimulator::PsfSimulator(PsfSpec spec) : spec_(std::move(spec)) {
       right_.push_back(k.right);
     }
     const torch::Tensor w = torch::tensor(q.weights, torch::kFloat64);
-    weights_.push_back(torch::outer(w, w).to(torch::TensorOptions().dtype(s.real_dtype).device(s.device)));
+    weights_.push_back(w.to(torch::TensorOptions().dtype(s.real_dtype).device(s.device)));
   }
 }
 
@@ -129,8 +129,10 @@ std::pair<torch::Tensor, torch::Tensor> band_psf(const BandContext& b, const tor
   // |K_z M K_zᵀ|² with K_z = tilt ⊙ chirp_z: [Z, P·n, P·n]; the kernels are rebuilt in backward, not stored.
   const torch::Tensor I = b.left.defined() ? mft_intensity_low_rank({b.left, b.right}, torch::stack(chirps), field)
                                            : mft_intensity(b.tilt, torch::stack(chirps), field);
-  // Pixel integral: Gauss–Legendre weights over each pixel's n×n nodes.
-  const torch::Tensor pix = (I.view({Z, P, n, P, n}) * b.weights.view({1, 1, n, 1, n})).sum({2, 4});  // [Z, P, P]
+  // Pixel integral: Gauss–Legendre weights over each pixel's n×n nodes, one
+  // axis at a time (a product over the contiguous axis, then over rows).
+  const torch::Tensor cols = torch::mv(I.reshape({-1, n}), b.weights).view({Z * P, n, P});  // Σ_j w_j I[.., j]
+  const torch::Tensor pix = (cols * b.weights.view({1, n, 1})).sum(1).view({Z, P, P});        // [Z, P, P]
   const torch::Tensor total = pix.sum({1, 2});                                  // [Z]
   // Energy bookkeeping (Parseval): window energy / energy through the aperture.
   //   window = p² Σ_pix I_pix · δ⁴/(λs)²,  aperture = δ² Σ A²

@@ -81,7 +81,7 @@ class PsfSimulator {
   torch::Tensor pupil_x_;               // float64 [N]
   std::vector<torch::Tensor> tilt_;     // per band: complex [P·n_l, N] (exact path)
   std::vector<torch::Tensor> left_, right_;  // per band: low-rank factors of tilt_ (if mft_rank_tol > 0)
-  std::vector<torch::Tensor> weights_;  // per band: real [n_l, n_l] (outer product of GL weights)
+  std::vector<torch::Tensor> weights_;  // per band: real [n_l], Gauss-Legendre weights on [0, 1]
   double aperture_energy_ = 0.0;        // Σ A² (δ² units)
 };
 

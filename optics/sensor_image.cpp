@@ -6,6 +6,7 @@
 #include <torch/torch.h>
 
 #include "common/error.h"
+#include "optics/spectral_sum.h"
 
 namespace hsd::optics {
 
@@ -79,22 +80,68 @@ torch::Tensor otf(const torch::Tensor& psf, int64_t nh, int64_t nw) {
   k = torch::roll(k, {-r, -r}, {-2, -1});
   return torch::fft::rfft2(k);
 }
-// OTFs of P×P kernels [L, P, P] (centre at (0, 0)) on an (nh, nw) real-FFT grid as
-// a small DFT, O = E_h K E_wᵀ: two GEMMs whose backward is two GEMMs too. The
-// FFT route's backward (LibTorch's r2c adjoint) is a full-size complex FFT per
-// band, about 4× the cost here. DFT phases are built in float64 and wrapped.
-torch::Tensor otf_dft(const torch::Tensor& psf, int64_t nh, int64_t nw) {
-  const int64_t L = psf.size(0), P = psf.size(-1), r = P / 2, nwr = nw / 2 + 1;
-  const auto cdt = psf.scalar_type() == torch::kFloat64 ? torch::kComplexDouble : torch::kComplexFloat;
-  auto dft = [&](int64_t n, int64_t bins) {  // [bins, P]: exp(−2πi k (a − r)/n)
-    const torch::Tensor k = torch::arange(bins, torch::kFloat64).view({-1, 1});
-    const torch::Tensor a = (torch::arange(P, torch::kFloat64) - double(r)).view({1, -1});
-    const torch::Tensor ph = torch::remainder(k * a, double(n)) * (-2.0 * M_PI / double(n));
-    return torch::complex(torch::cos(ph), torch::sin(ph)).to(cdt).to(psf.device());
-  };
-  const torch::Tensor eh = dft(nh, nh), ew = dft(nw, nwr);
-  const torch::Tensor t = torch::mm(psf.to(cdt).reshape({L * P, P}), ew.t()).view({L, P, nwr});     // K E_wᵀ
-  return torch::mm(eh, t.permute({1, 0, 2}).reshape({P, L * nwr})).view({nh, L, nwr}).permute({1, 0, 2});  // [L, nh, nwr]
+// DFT matrix [bins, P] of an n-point transform for a P-tap kernel whose centre
+// tap (index r = P/2) sits at 0: E[k, a] = exp(−2πi k (a − r)/n). Phases are
+// formed in float64 and reduced mod n before the float cast.
+torch::Tensor kernel_dft_matrix(int64_t n, int64_t bins, int64_t P, c10::ScalarType cdt, torch::Device device) {
+  const int64_t r = P / 2;
+  const torch::Tensor k = torch::arange(bins, torch::kFloat64).view({-1, 1});
+  const torch::Tensor a = (torch::arange(P, torch::kFloat64) - double(r)).view({1, -1});
+  const torch::Tensor ph = torch::remainder(k * a, double(n)) * (-2.0 * M_PI / double(n));
+  return torch::complex(torch::cos(ph), torch::sin(ph)).to(cdt).to(device);
+}
+
+// One layer's band-summed spectrum as one autograd node:
+//   OTF_λ = E_h K_λ E_wᵀ                    (K_λ = P_λ,z, P×P, centre at (0, 0))
+//   S[b, c] = Σ_λ Ω[c, λ] · FFT(I_λ)[b] · OTF_λ      -> [B, C, nh, nw/2+1]
+// The OTFs are a small DFT (K E_wᵀ as one GEMM, then E_h per band as a batched
+// GEMM, which leaves them contiguous; a permuted copy costs more than the GEMM);
+// the band sum and its adjoint are fused loops (spectral_sum.h). Gradient only
+// for the PSFs (the radiance and Ω are constants here; render_sensor_image takes
+// the generic autograd path when they need a gradient).
+struct LayerSpectrum : public torch::autograd::Function<LayerSpectrum> {
+  // psf [L, P, P] real; spec [B, L, nh, nwr]; omega [C, L] real;
+  // eh [nh, P], ew [nwr, P] (complex, the DFT matrices).
+  static torch::Tensor forward(torch::autograd::AutogradContext* ctx, torch::Tensor psf, torch::Tensor spec,
+                               torch::Tensor omega, torch::Tensor eh, torch::Tensor ew) {
+    const int64_t L = psf.size(0), P = psf.size(1), nh = eh.size(0), nwr = ew.size(0), B = spec.size(0),
+                  C = omega.size(0);
+    const torch::Tensor t = torch::mm(psf.to(eh.scalar_type()).reshape({L * P, P}), ew.t()).view({L, P, nwr});
+    const torch::Tensor o = torch::bmm(eh.expand({L, nh, P}), t).view({L, nh * nwr});  // OTFs, contiguous
+    std::vector<torch::Tensor> s;
+    for (int64_t b = 0; b < B; ++b) s.push_back(spectral_sum(spec[b].reshape({L, nh * nwr}), o, omega).view({C, nh, nwr}));
+    ctx->save_for_backward({spec, omega, eh, ew});
+    ctx->saved_data["psf_dtype"] = int64_t(psf.scalar_type());
+    return torch::stack(s);
+  }
+  static torch::autograd::variable_list backward(torch::autograd::AutogradContext* ctx,
+                                                 torch::autograd::variable_list grads) {
+    const auto saved = ctx->get_saved_variables();
+    const torch::Tensor &spec = saved[0], &omega = saved[1], &eh = saved[2], &ew = saved[3];
+    const int64_t B = spec.size(0), L = spec.size(1), nh = eh.size(0), nwr = ew.size(0), P = eh.size(1),
+                  C = omega.size(0);
+    const torch::Tensor gs = grads[0].resolve_conj();  // [B, C, nh, nwr]
+    // dL/dO_λ = Σ_b conj(FFT(I_λ))[b] · Σ_c Ω[c, λ] dL/dS[b, c]   [L, nh·nwr]
+    torch::Tensor go;
+    for (int64_t b = 0; b < B; ++b)
+      go = spectral_sum_adjoint(spec[b].reshape({L, nh * nwr}), gs[b].reshape({C, nh * nwr}), omega, go);
+    // O = E_h T -> dT = E_hᴴ dO;  T = K E_wᵀ -> dK = dT conj(E_w); the PSF is real: Re.
+    const torch::Tensor gt = torch::bmm(eh.conj().resolve_conj().t().expand({L, P, nh}), go.view({L, nh, nwr}));
+    const torch::Tensor gk = torch::mm(gt.view({L * P, nwr}), ew.conj().resolve_conj()).view({L, P, P});
+    const auto dt = c10::ScalarType(ctx->saved_data["psf_dtype"].toInt());
+    return {torch::real(gk).to(dt).contiguous(), {}, {}, {}, {}};
+  }
+};
+
+// The same, composed of differentiable ops (used when the radiance or Ω needs a gradient).
+torch::Tensor layer_spectrum_generic(const torch::Tensor& psf, const torch::Tensor& spec, const torch::Tensor& omega,
+                                     const torch::Tensor& eh, const torch::Tensor& ew) {
+  const int64_t L = psf.size(0), P = psf.size(1), nh = eh.size(0), nwr = ew.size(0);
+  const torch::Tensor k = psf.to(eh.scalar_type()).permute({1, 0, 2}).reshape({P, L * P});
+  const torch::Tensor t = torch::mm(eh, k).view({nh, L, P}).permute({1, 0, 2}).reshape({L * nh, P});
+  const torch::Tensor o = torch::mm(t, ew.t()).view({L, nh, nwr});
+  const torch::Tensor prod = torch::view_as_real(spec * o.unsqueeze(0));  // [B, L, nh, nwr, 2]
+  return torch::view_as_complex(torch::tensordot(omega, prod, {1}, {1}).permute({1, 0, 2, 3, 4}).contiguous());
 }
 
 }  // namespace
@@ -128,14 +175,17 @@ torch::Tensor render_sensor_image(const torch::Tensor& radiance, const torch::Te
   // Each band's image FFT, once. Edge replication extends the scene by r.
   const torch::Tensor spec = torch::fft::rfft2(F::pad(rad, F::PadFuncOptions({r, r, r, r}).mode(torch::kReplicate)), c10::IntArrayRef{nh, nw});
   const torch::Tensor layer_used = (masks.detach().abs().sum({0, 2, 3}) > 0).cpu();
+  const auto cdt = spec.scalar_type();
+  const torch::Tensor eh = kernel_dft_matrix(nh, nh, P, cdt, spec.device());
+  const torch::Tensor ew = kernel_dft_matrix(nw, nw / 2 + 1, P, cdt, spec.device());
+  // The custom node differentiates the PSFs only; otherwise compose generic ops.
+  const bool generic = spec.requires_grad() || om.requires_grad();
   for (int64_t z = 0; z < Z; ++z) {
     if (leave_out && !layer_used[z].item<bool>()) continue;
-    const torch::Tensor o = otf_dft(ps.select(1, z), nh, nw);  // [L', nh, nw/2+1]
-    // Σ_λ Ω_c,λ FFT(I_λ) OTF_λ,z  -> [B, C, nh, nw/2+1]; spectrum times OTF once per band,
-    // then the camera weights as a small real matrix over the band axis.
-    const torch::Tensor prod = torch::view_as_real(spec * o.unsqueeze(0));  // [B, L', nh, nwr, 2]
-    const torch::Tensor summed = torch::view_as_complex(
-        torch::tensordot(om, prod, {1}, {1}).permute({1, 0, 2, 3, 4}).contiguous());  // [B, C, nh, nwr]
+    // Σ_λ Ω_c,λ FFT(I_λ) OTF_λ,z -> [B, C, nh, nw/2+1], then 3 inverse FFTs per image.
+    const torch::Tensor pz = ps.select(1, z);
+    const torch::Tensor summed = generic ? layer_spectrum_generic(pz, spec, om, eh, ew)
+                                         : LayerSpectrum::apply(pz, spec, om, eh, ew);
     const torch::Tensor img = torch::fft::irfft2(summed, c10::IntArrayRef{nh, nw}).narrow(2, r, H).narrow(3, r, W);
     out = out + masks.narrow(1, z, 1) * img;
   }

@@ -9,6 +9,7 @@
 
 int main(int argc, char** argv) {
   hsd::use_passive_openmp(argv);  // see common/app.h
+  hsd::keep_freed_memory();
   torch::set_num_threads(2);
   hsd::log::set_quiet(true);
   return Catch::Session().run(argc, argv);

@@ -124,6 +124,29 @@ TEST_CASE("sensor: gradient from the image reaches the height map and matches fi
   }
 }
 
+TEST_CASE("sensor: the PSF gradient of the fast node equals that of generic autograd ops", "[sensor][gradient]") {
+  // render_sensor_image differentiates the PSFs with its own backward pass
+  // (LayerSpectrum) unless the radiance needs a gradient, when it composes
+  // generic ops; both must give the same dL/dPSF, here in float64 with B = 2.
+  const int64_t L = 4, Z = 3, P = 7, H = 20, W = 18, B = 2;
+  const std::vector<double> depths{0.5, 0.9, 2.0};
+  const torch::Tensor psf0 = random_psf(L, Z, P, 11);
+  torch::manual_seed(12);
+  const torch::Tensor I = torch::rand({B, L, H, W}, torch::kFloat64);
+  const torch::Tensor omega = torch::rand({3, L}, torch::kFloat64);
+  const torch::Tensor masks = optics::layer_masks(0.45 + 2.0 * torch::rand({B, 1, H, W}, torch::kFloat64), depths, 1.0);
+  const torch::Tensor w = torch::randn({B, 3, H, W}, torch::kFloat64);
+  auto grads = [&](bool radiance_grad) {
+    torch::Tensor p = psf0.clone().set_requires_grad(true);
+    torch::Tensor i = I.clone().set_requires_grad(radiance_grad);
+    (optics::render_sensor_image(i, masks, p, omega) * w).sum().backward();
+    return p.grad();
+  };
+  const torch::Tensor fast = grads(false), generic = grads(true);
+  REQUIRE(generic.abs().max().item<double>() > 0.0);
+  CHECK((fast - generic).abs().max().item<double>() < 1e-10 * generic.abs().max().item<double>());
+}
+
 TEST_CASE("sensor: occlusion compositing keeps a uniform scene uniform and matches the linear model for one layer",
           "[sensor][occlusion]") {
   const int64_t L = 3, Z = 2, P = 9, H = 24, W = 24;
