@@ -108,7 +108,64 @@ OpticsConfig parse_optics(const JsonReader& r) {
   return o;
 }
 
+DataConfig parse_data(const JsonReader& d) {
+  DataConfig c;
+  c.root = d.get_string("root", c.root);
+  if (c.root.empty()) d.fail("root", "must not be empty");
+  c.generate_if_missing = d.get_bool("generate_if_missing", c.generate_if_missing);
+  if (d.has("illuminants")) c.illuminants = d.get_string_array("illuminants");
+  if (c.illuminants.empty()) d.fail("illuminants", "needs at least one illuminant name");
+  c.intensity_min = d.get_number("intensity_min", c.intensity_min);
+  c.intensity_max = d.get_number("intensity_max", c.intensity_max);
+  if (!(c.intensity_min > 0.0)) d.fail("intensity_min", "must be > 0");
+  if (c.intensity_max < c.intensity_min) d.fail("intensity_max", "must be >= data.intensity_min");
+  c.patch_size_px = d.get_int("patch_size_px", c.patch_size_px);
+  if (c.patch_size_px < 8 || c.patch_size_px > 8192) d.fail("patch_size_px", "must be in [8, 8192]");
+  c.patches = d.get_int("patches", c.patches);
+  if (c.patches < 1) d.fail("patches", "must be >= 1");
+  c.loader_threads = d.get_int("loader_threads", c.loader_threads);
+  if (c.loader_threads < 0 || c.loader_threads > 256) d.fail("loader_threads", "must be in [0, 256] (0 = all cores)");
+  if (auto gr = d.optional_child("generator")) {
+    auto& g = c.generator;
+    g.train_scenes = gr->get_int("train_scenes", g.train_scenes);
+    g.val_scenes = gr->get_int("val_scenes", g.val_scenes);
+    g.test_scenes = gr->get_int("test_scenes", g.test_scenes);
+    for (const char* k : {"train_scenes", "val_scenes", "test_scenes"})
+      if (gr->get_int(k, 0) < 0 || gr->get_int(k, 0) > 100000) gr->fail(k, "must be in [0, 100000]");
+    g.width_px = gr->get_int("width_px", g.width_px);
+    g.height_px = gr->get_int("height_px", g.height_px);
+    if (g.width_px < 16 || g.width_px > 8192) gr->fail("width_px", "must be in [16, 8192]");
+    if (g.height_px < 16 || g.height_px > 8192) gr->fail("height_px", "must be in [16, 8192]");
+    g.fov_deg = gr->get_number("fov_deg", g.fov_deg);
+    if (!(g.fov_deg >= 1.0 && g.fov_deg <= 120.0)) gr->fail("fov_deg", "must be in [1, 120] degrees");
+    g.depth_min_m = gr->get_number("depth_min_m", g.depth_min_m);
+    g.depth_max_m = gr->get_number("depth_max_m", g.depth_max_m);
+    if (!(g.depth_min_m > 0.0)) gr->fail("depth_min_m", "must be > 0");
+    if (!(g.depth_max_m > g.depth_min_m * 1.2))
+      gr->fail("depth_max_m", "must exceed data.generator.depth_min_m by at least 20 %");
+    g.objects_min = gr->get_int("objects_min", g.objects_min);
+    g.objects_max = gr->get_int("objects_max", g.objects_max);
+    if (g.objects_min < 0 || g.objects_min > 64) gr->fail("objects_min", "must be in [0, 64]");
+    if (g.objects_max < g.objects_min || g.objects_max > 64) gr->fail("objects_max", "must be in [objects_min, 64]");
+    g.colorchecker = gr->get_bool("colorchecker", g.colorchecker);
+    g.colorchecker_depth_m = gr->get_number("colorchecker_depth_m", g.colorchecker_depth_m);
+    if (!(g.colorchecker_depth_m > 0.0)) gr->fail("colorchecker_depth_m", "must be > 0");
+    g.half = gr->get_bool("half", g.half);
+  }
+  return c;
+}
+
 }  // namespace
+
+std::vector<std::string> default_augmentation_illuminants() {
+  std::vector<std::string> v{"A", "D50", "D55", "D65", "D75"};
+  for (int i = 1; i <= 12; ++i) v.push_back("FL" + std::to_string(i));
+  for (int i = 1; i <= 5; ++i) v.push_back("HP" + std::to_string(i));
+  for (int i = 1; i <= 5; ++i) v.push_back("LED-B" + std::to_string(i));
+  v.push_back("LED-BH1");
+  v.push_back("LED-RGB1");
+  return v;
+}
 
 std::vector<double> OpticsConfig::wavelengths_m() const {
   std::vector<double> w;
@@ -162,7 +219,7 @@ Config parse_config(const Json& resolved) {
     c.train.batch_size = t->get_int("batch_size", c.train.batch_size);
     if (c.train.batch_size < 1) t->fail("batch_size", "must be >= 1");
   }
-  if (auto d = r.optional_child("data")) c.data.root = d->get_string("root", c.data.root);
+  if (auto d = r.optional_child("data")) c.data = parse_data(*d);
   r.check_all_used();
   return c;
 }

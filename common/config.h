@@ -71,8 +71,32 @@ struct TrainConfig {
   int64_t batch_size = 4;
 };
 
+// hsd_scenes: synthetic tabletop HS-D scenes (data/scene_generator.h).
+struct GeneratorConfig {
+  int64_t train_scenes = 12, val_scenes = 2, test_scenes = 2;
+  int64_t width_px = 512, height_px = 384;
+  double fov_deg = 40.0;                       // horizontal field of view of the generator's pinhole camera
+  double depth_min_m = 0.4, depth_max_m = 2.5;  // nearest object surface .. back wall
+  int64_t objects_min = 3, objects_max = 7;
+  bool colorchecker = true;                     // also write the 24-patch ColorChecker scene (test split)
+  double colorchecker_depth_m = 1.0;
+  bool half = true;                             // spectral channels as 16-bit floats
+};
+
+// The 29 CIE illuminants of the spectral augmentation (data/illuminant_augment.h
+// says why these): incandescent A, daylight D50-D75, fluorescent FL1-FL12,
+// high-pressure HP1-HP5, white LEDs LED-B1-B5, LED-BH1, LED-RGB1.
+std::vector<std::string> default_augmentation_illuminants();
+
 struct DataConfig {
   std::string root = "out/data";
+  bool generate_if_missing = true;    // hsd_train: run the generator when root has no manifest.json
+  std::vector<std::string> illuminants = default_augmentation_illuminants();
+  double intensity_min = 0.5, intensity_max = 1.0;  // random global scale of the lit radiance
+  int64_t patch_size_px = 256;
+  int64_t patches = 20000;           // per epoch of the patch sampler (the paper: 20,000)
+  int64_t loader_threads = 0;        // scene loading; 0 = all cores
+  GeneratorConfig generator;
 };
 
 struct Config {

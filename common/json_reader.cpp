@@ -203,4 +203,22 @@ void JsonReader::check_all_used() const {
   if (!first.empty()) input_error("config key " + first, "unknown key (misspelt, or not valid here)");
 }
 
+std::vector<std::string> JsonReader::get_string_array(const std::string& key) const {
+  const Json& j = at(key);
+  if (!j.is_array()) fail(key, "expected an array of strings, got " + type_name(j));
+  std::vector<std::string> out;
+  for (size_t i = 0; i < j.size(); ++i) {
+    if (!j[i].is_string()) fail(key, "element " + std::to_string(i) + " is " + type_name(j[i]) + ", expected a string");
+    out.push_back(j[i].get<std::string>());
+  }
+  return out;
+}
+
+bool JsonReader::get_bool(const std::string& key, bool fallback) const {
+  if (!has(key)) return fallback;
+  const Json& j = at(key);
+  if (!j.is_boolean()) fail(key, "expected true or false, got " + type_name(j));
+  return j.get<bool>();
+}
+
 }  // namespace hsd

@@ -40,6 +40,8 @@ class JsonReader {
   std::string get_string(const std::string& key) const;
   std::string get_string(const std::string& key, const std::string& fallback) const;
   std::vector<double> get_number_array(const std::string& key) const;
+  std::vector<std::string> get_string_array(const std::string& key) const;
+  bool get_bool(const std::string& key, bool fallback) const;
   // Number or null (null -> fallback).
   double get_number_or_null(const std::string& key, double fallback) const;
 

@@ -70,24 +70,30 @@ torch::Tensor read_channels(Imf::InputFile& file, const std::vector<std::string>
   return out;
 }
 
-void write_exr(const std::string& path, const std::vector<std::pair<std::string, torch::Tensor>>& channels, bool half,
+struct OutChannel {
+  std::string name;
+  torch::Tensor data;  // [H, W]
+  bool half = false;   // store 16-bit floats
+};
+
+void write_exr(const std::string& path, const std::vector<OutChannel>& channels,
                const std::map<std::string, std::string>& attributes) {
   if (channels.empty()) input_error(path, "no channels to write");
-  const int64_t H = channels[0].second.size(0), W = channels[0].second.size(1);
+  const int64_t H = channels[0].data.size(0), W = channels[0].data.size(1);
   // OpenEXR does not convert pixel types on output: hand it the file's type.
   std::vector<torch::Tensor> keep;
   for (const auto& ch : channels)
-    keep.push_back(ch.second.detach().to(half ? torch::kHalf : torch::kFloat32).cpu().contiguous());
-  const size_t bytes = half ? 2 : sizeof(float);
+    keep.push_back(ch.data.detach().to(ch.half ? torch::kHalf : torch::kFloat32).cpu().contiguous());
   write_atomically(path, [&](const std::string& tmp) {
     try {
       Imf::Header header(static_cast<int>(W), static_cast<int>(H));
       for (const auto& [k, v] : attributes) header.insert(k, Imf::StringAttribute(v));
       Imf::FrameBuffer fb;
       for (size_t c = 0; c < channels.size(); ++c) {
-        header.channels().insert(channels[c].first, Imf::Channel(half ? Imf::HALF : Imf::FLOAT));
-        fb.insert(channels[c].first, Imf::Slice(half ? Imf::HALF : Imf::FLOAT, static_cast<char*>(keep[c].data_ptr()),
-                                                bytes, bytes * size_t(W)));
+        const auto type = channels[c].half ? Imf::HALF : Imf::FLOAT;
+        const size_t bytes = channels[c].half ? 2 : sizeof(float);
+        header.channels().insert(channels[c].name, Imf::Channel(type));
+        fb.insert(channels[c].name, Imf::Slice(type, static_cast<char*>(keep[c].data_ptr()), bytes, bytes * size_t(W)));
       }
       Imf::OutputFile file(tmp.c_str(), header);
       file.setFrameBuffer(fb);
@@ -120,6 +126,9 @@ SpectralScene read_scene_exr(const std::string& path) {
       const std::string name = it.name();
       if (name == "Z") has_z = true;
       else if (name == "mask") has_mask = true;
+      else if ((name.rfind("T.", 0) == 0 || name.rfind("S0.", 0) == 0) && !parse_spectral_channel(name))
+        input_error(path, "malformed spectral channel name \"" + name +
+                              "\" (expected T.<wavelength><unit> or S0.<wavelength><unit>, e.g. T.550nm or T.552,5nm)");
       else if (auto sc = parse_spectral_channel(name)) {
         if (!kind_prefix.empty() && kind_prefix != sc->prefix)
           input_error(path, "mixes reflectance (T.) and emission (S0.) channels; use one kind per scene");
@@ -165,14 +174,14 @@ void write_scene_exr(const std::string& path, const SpectralScene& scene, bool h
   const std::string prefix = scene.kind == SpectralKind::Reflectance ? "T" : "S0";
   if (scene.spectral.dim() != 3 || scene.spectral.size(0) != int64_t(scene.wavelengths_m.size()))
     input_error(path, "scene spectral data must be [L, H, W] with one wavelength per band");
-  std::vector<std::pair<std::string, torch::Tensor>> ch;
+  std::vector<OutChannel> ch;
   for (size_t l = 0; l < scene.wavelengths_m.size(); ++l)
-    ch.emplace_back(spectral_channel_name(prefix, scene.wavelengths_m[l]), scene.spectral[int64_t(l)]);
-  ch.emplace_back("Z", scene.depth_m[0]);
-  if (scene.mask.defined()) ch.emplace_back("mask", scene.mask[0]);
+    ch.push_back({spectral_channel_name(prefix, scene.wavelengths_m[l]), scene.spectral[int64_t(l)], half});
+  ch.push_back({"Z", scene.depth_m[0], false});  // depth stays float32 (half: ~1 mm steps at 2 m)
+  if (scene.mask.defined()) ch.push_back({"mask", scene.mask[0], half});
   std::map<std::string, std::string> attrs{{"spectralLayoutVersion", "1.0"}};
   if (prefix == "S0") attrs["emissiveUnits"] = "W.m^-2.sr^-1";
-  write_exr(path, ch, half, attrs);
+  write_exr(path, ch, attrs);
 }
 
 torch::Tensor read_channels_exr(const std::string& path, const std::vector<std::string>& names) {
@@ -192,9 +201,9 @@ torch::Tensor read_channels_exr(const std::string& path, const std::vector<std::
 void write_channels_exr(const std::string& path, const torch::Tensor& image, const std::vector<std::string>& names) {
   if (image.dim() != 3 || image.size(0) != int64_t(names.size()))
     input_error(path, "image must be [C, H, W] with one name per channel");
-  std::vector<std::pair<std::string, torch::Tensor>> ch;
-  for (size_t c = 0; c < names.size(); ++c) ch.emplace_back(names[c], image[int64_t(c)]);
-  write_exr(path, ch, false, {});
+  std::vector<OutChannel> ch;
+  for (size_t c = 0; c < names.size(); ++c) ch.push_back({names[c], image[int64_t(c)], false});
+  write_exr(path, ch, {});
 }
 
 }  // namespace hsd::data

@@ -41,7 +41,8 @@ std::string spectral_channel_name(const std::string& prefix, double wavelength_m
 // truncated file, ...).
 SpectralScene read_scene_exr(const std::string& path);
 
-// Writes a scene (atomically: temporary file + rename). half = store 16-bit floats.
+// Writes a scene (atomically: temporary file + rename). half = store the
+// spectral channels and the mask as 16-bit floats (Z is always float32).
 void write_scene_exr(const std::string& path, const SpectralScene& scene, bool half = false);
 
 // Reads the named channels as float32 [C, H, W]; InputError naming the file and

@@ -130,20 +130,31 @@ torch::Tensor camera_response(const std::string& camera, const std::vector<doubl
   return (out / largest).to(torch::kFloat32);
 }
 
-torch::Tensor illuminant_bands(const std::string& name, const std::vector<double>& wavelengths_m, double band_width_m) {
+torch::Tensor illuminant_bands(const std::string& name, const std::vector<double>& wavelengths_m, double band_width_m,
+                               const std::string& config_key) {
   static const SpectralTable table = SpectralTable::load_csv(spectra_path("illuminants.csv"));
   if (!table.has_column(name)) {
     std::string known;
     for (const auto& c : table.columns()) known += (known.empty() ? "" : ", ") + c;
-    input_error("config key sensor.illuminant", "unknown illuminant \"" + name + "\" (known: " + known + ")");
+    input_error("config key " + config_key, "unknown illuminant \"" + name + "\" (known: " + known + ")");
   }
   const double half_nm = 0.5 * band_width_m * 1e9;
   std::vector<double> v;
   for (double w : wavelengths_m) v.push_back(table.band_mean(name, w * 1e9 - half_nm, w * 1e9 + half_nm));
   torch::Tensor t = torch::tensor(v, torch::kFloat64);
   const double m = t.max().item<double>();
-  if (!(m > 0.0)) input_error("config key sensor.illuminant", "illuminant \"" + name + "\" is zero in every band");
+  if (!(m > 0.0)) input_error("config key " + config_key, "illuminant \"" + name + "\" is zero in every band");
   return (t / m).to(torch::kFloat32);
+}
+
+torch::Tensor table_bands(const std::string& file, const std::string& column, const std::vector<double>& wavelengths_m,
+                          double band_width_m) {
+  const SpectralTable table = SpectralTable::load_csv(spectra_path(file));
+  if (!table.has_column(column)) input_error(spectra_path(file), "has no column \"" + column + "\"");
+  const double half_nm = 0.5 * band_width_m * 1e9;
+  std::vector<double> v;
+  for (double w : wavelengths_m) v.push_back(table.band_mean(column, w * 1e9 - half_nm, w * 1e9 + half_nm));
+  return torch::tensor(v, torch::kFloat64);
 }
 
 std::array<double, 3> wavelength_display_rgb(double wavelength_m) {

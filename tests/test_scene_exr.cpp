@@ -1,6 +1,7 @@
 // Spectral-EXR scenes (Fichet et al. 2021 layout): channel names, round trips
 // in float and half, and one clear error per malformed scene.
 #include <catch2/catch.hpp>
+#include <limits>
 #include <filesystem>
 #include <fstream>
 
@@ -80,6 +81,14 @@ TEST_CASE("malformed scenes are refused naming the file and the problem", "[exr]
   CHECK_THROWS_WITH(read_scene_exr(tmp("rgb.exr")), Catch::Contains("no spectral channels"));
   write_channels_exr(tmp("mixed.exr"), torch::cat({s.spectral, s.depth_m}), {"T.450nm", "S0.550nm", "T.650nm", "Z"});
   CHECK_THROWS_WITH(read_scene_exr(tmp("mixed.exr")), Catch::Contains("mixes"));
+  write_channels_exr(tmp("badname.exr"), torch::cat({s.spectral, s.depth_m}), {"T.450nm", "T.5x0nm", "T.650nm", "Z"});
+  CHECK_THROWS_WITH(read_scene_exr(tmp("badname.exr")), Catch::Contains("badname.exr") && Catch::Contains("T.5x0nm"));
+  // Inf in a valid pixel's spectrum.
+  bad = s;
+  bad.spectral = s.spectral.clone();
+  bad.spectral[1][1][1] = std::numeric_limits<float>::infinity();
+  write_scene_exr(tmp("inf_spec.exr"), bad);
+  CHECK_THROWS_WITH(read_scene_exr(tmp("inf_spec.exr")), Catch::Contains("inf_spec.exr") && Catch::Contains("NaN or Inf"));
   // Truncated and missing files.
   write_scene_exr(tmp("whole.exr"), s);
   const auto size = fs::file_size(tmp("whole.exr"));

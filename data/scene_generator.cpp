@@ -1,0 +1,361 @@
+#include "data/scene_generator.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <map>
+#include <random>
+
+#include <torch/torch.h>
+
+#include "common/error.h"
+
+namespace hsd::data {
+
+namespace {
+
+using torch::indexing::None;
+using torch::indexing::Slice;
+constexpr double kInf = std::numeric_limits<double>::infinity();
+const auto f64 = torch::TensorOptions().dtype(torch::kFloat64);
+
+// Per-pixel ray directions d = (dx, dy, 1): a hit at parameter t lies at t·d, depth Z = t.
+struct Rays {
+  torch::Tensor dx, dy;  // [H, W]
+  double tan_h = 0, tan_v = 0;
+};
+Rays make_rays(int64_t H, int64_t W, double fov_deg) {
+  Rays r;
+  const double f = 0.5 * double(W) / std::tan(0.5 * fov_deg * M_PI / 180.0);
+  r.tan_h = 0.5 * double(W) / f, r.tan_v = 0.5 * double(H) / f;
+  const torch::Tensor xs = (torch::arange(W, f64) + 0.5 - 0.5 * double(W)) / f;
+  const torch::Tensor ys = (torch::arange(H, f64) + 0.5 - 0.5 * double(H)) / f;
+  r.dx = xs.view({1, W}).expand({H, W});
+  r.dy = ys.view({H, 1}).expand({H, W});
+  return r;
+}
+
+struct Hit {
+  torch::Tensor t;                // [H, W], +inf where missed
+  torch::Tensor nx, ny, nz;       // unit normal (any orientation; flipped to face the camera later)
+};
+torch::Tensor inf_like(const torch::Tensor& x) { return torch::full_like(x, kInf); }
+
+// Plane n·P = c.
+Hit hit_plane(const Rays& r, std::array<double, 3> n, double c) {
+  const torch::Tensor nd = n[0] * r.dx + n[1] * r.dy + n[2];
+  torch::Tensor t = c / nd;
+  t = torch::where((nd.abs() > 1e-12) & (t > 0), t, inf_like(t));
+  return {t, torch::full_like(t, n[0]), torch::full_like(t, n[1]), torch::full_like(t, n[2])};
+}
+
+// Rectangle: centre C, unit axes u, v (normal n = u × v), half sizes a, b.
+Hit hit_card(const Rays& r, std::array<double, 3> C, std::array<double, 3> u, std::array<double, 3> v, double a, double b) {
+  const std::array<double, 3> n{u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+  Hit h = hit_plane(r, n, n[0] * C[0] + n[1] * C[1] + n[2] * C[2]);
+  const torch::Tensor px = h.t * r.dx - C[0], py = h.t * r.dy - C[1], pz = h.t - C[2];
+  const torch::Tensor su = px * u[0] + py * u[1] + pz * u[2], sv = px * v[0] + py * v[1] + pz * v[2];
+  h.t = torch::where((su.abs() <= a) & (sv.abs() <= b), h.t, inf_like(h.t));
+  return h;
+}
+
+Hit hit_sphere(const Rays& r, std::array<double, 3> C, double rad) {
+  const torch::Tensor A = r.dx * r.dx + r.dy * r.dy + 1.0;
+  const torch::Tensor B = -2.0 * (r.dx * C[0] + r.dy * C[1] + C[2]);
+  const double Cc = C[0] * C[0] + C[1] * C[1] + C[2] * C[2] - rad * rad;
+  const torch::Tensor disc = B * B - 4.0 * A * Cc;
+  torch::Tensor t = (-B - disc.clamp_min(0).sqrt()) / (2.0 * A);
+  t = torch::where((disc >= 0) & (t > 0), t, inf_like(t));
+  const torch::Tensor tt = torch::where(torch::isfinite(t), t, torch::zeros_like(t));
+  return {t, (tt * r.dx - C[0]) / rad, (tt * r.dy - C[1]) / rad, (tt - C[2]) / rad};
+}
+
+// Vertical cylinder: axis through (cx, ·, cz), radius rad, y in [y_top, y_bottom] (y down), capped on top.
+Hit hit_cylinder(const Rays& r, double cx, double cz, double rad, double y_top, double y_bottom) {
+  const torch::Tensor A = r.dx * r.dx + 1.0;
+  const torch::Tensor B = -2.0 * (r.dx * cx + cz);
+  const double Cc = cx * cx + cz * cz - rad * rad;
+  const torch::Tensor disc = B * B - 4.0 * A * Cc;
+  torch::Tensor t = (-B - disc.clamp_min(0).sqrt()) / (2.0 * A);
+  const torch::Tensor y = t * r.dy;
+  t = torch::where((disc >= 0) & (t > 0) & (y >= y_top) & (y <= y_bottom), t, inf_like(t));
+  const torch::Tensor tt = torch::where(torch::isfinite(t), t, torch::zeros_like(t));
+  Hit side{t, (tt * r.dx - cx) / rad, torch::zeros_like(t), (tt - cz) / rad};
+  // Top cap: plane y = y_top (seen from above when y_top > 0, i.e. below the eye).
+  torch::Tensor tc = y_top / r.dy;
+  const torch::Tensor qx = tc * r.dx - cx, qz = tc - cz;
+  tc = torch::where((r.dy.abs() > 1e-12) & (tc > 0) & (qx * qx + qz * qz <= rad * rad), tc, inf_like(tc));
+  const torch::Tensor cap = tc < side.t;
+  return {torch::where(cap, tc, side.t), torch::where(cap, torch::zeros_like(t), side.nx),
+          torch::where(cap, -torch::ones_like(t), side.ny), torch::where(cap, torch::zeros_like(t), side.nz)};
+}
+
+// Box: centre C, half extents e, rotated by theta about the vertical (slab method in the box frame).
+Hit hit_box(const Rays& r, std::array<double, 3> C, std::array<double, 3> e, double theta) {
+  const double c = std::cos(theta), s = std::sin(theta);
+  // Box frame: x' = c x + s z, z' = −s x + c z (rotation about y), origin at C.
+  const double ox = -(c * C[0] + s * C[2]), oy = -C[1], oz = -(-s * C[0] + c * C[2]);
+  const torch::Tensor dx = c * r.dx + s, dy = r.dy, dz = -s * r.dx + c;
+  const std::array<torch::Tensor, 3> d{dx, dy, dz};
+  const std::array<double, 3> o{ox, oy, oz};
+  torch::Tensor tmin = torch::full_like(dx, -kInf), tmax = torch::full_like(dx, kInf);
+  torch::Tensor axis = torch::zeros_like(dx), sign = torch::zeros_like(dx);
+  for (int i = 0; i < 3; ++i) {
+    const torch::Tensor inv = 1.0 / torch::where(d[size_t(i)].abs() < 1e-12, torch::full_like(dx, 1e-12), d[size_t(i)]);
+    const torch::Tensor t1 = (-e[size_t(i)] - o[size_t(i)]) * inv, t2 = (e[size_t(i)] - o[size_t(i)]) * inv;
+    const torch::Tensor lo = torch::minimum(t1, t2), hi = torch::maximum(t1, t2);
+    const torch::Tensor better = lo > tmin;
+    axis = torch::where(better, torch::full_like(dx, double(i)), axis);
+    sign = torch::where(better, torch::where(t1 < t2, -torch::ones_like(dx), torch::ones_like(dx)), sign);
+    tmin = torch::maximum(tmin, lo);
+    tmax = torch::minimum(tmax, hi);
+  }
+  const torch::Tensor t = torch::where((tmax >= tmin) & (tmin > 0), tmin, inf_like(tmin));
+  // Normal in the box frame, back to the world (inverse rotation).
+  const torch::Tensor nxp = torch::where(axis == 0, sign, torch::zeros_like(dx));
+  const torch::Tensor nyp = torch::where(axis == 1, sign, torch::zeros_like(dx));
+  const torch::Tensor nzp = torch::where(axis == 2, sign, torch::zeros_like(dx));
+  return {t, c * nxp - s * nzp, nyp, s * nxp + c * nzp};
+}
+
+// Periodic 1/f^beta noise [n, n] in [0, 1] (natural images: beta ≈ 1-2 in amplitude).
+torch::Tensor pink_noise(int64_t n, double beta, std::mt19937_64& rng) {
+  const torch::Tensor k = torch::fft::fftfreq(n, 1.0, f64);
+  const torch::Tensor kk = (k.view({n, 1}).pow(2) + k.view({1, n}).pow(2)).sqrt().clamp_min(1.0 / double(n));
+  std::vector<double> ph(size_t(n * n));
+  std::uniform_real_distribution<double> U(0.0, 2.0 * M_PI);
+  for (auto& p : ph) p = U(rng);
+  const torch::Tensor phase = torch::tensor(ph, f64).view({n, n});
+  const torch::Tensor spec = torch::polar(kk.pow(-beta), phase);
+  torch::Tensor x = torch::real(torch::fft::ifft2(spec));
+  x = (x - x.min()) / (x.max() - x.min()).clamp_min(1e-12);
+  return x;
+}
+
+// Bilinear lookup of a periodic texture [n, n] at (u, v) in texture periods.
+torch::Tensor sample_periodic(const torch::Tensor& tex, const torch::Tensor& u, const torch::Tensor& v) {
+  const int64_t n = tex.size(0);
+  const torch::Tensor fu = (u - u.floor()) * double(n), fv = (v - v.floor()) * double(n);
+  const torch::Tensor iu = fu.floor().to(torch::kLong), iv = fv.floor().to(torch::kLong);
+  const torch::Tensor au = fu - iu.to(torch::kFloat64), av = fv - iv.to(torch::kFloat64);
+  const torch::Tensor flat = tex.reshape(-1);
+  auto at = [&](const torch::Tensor& a, const torch::Tensor& b) {
+    return flat.index_select(0, ((a.remainder(n)) * n + b.remainder(n)).reshape(-1)).view(a.sizes());
+  };
+  return (1 - av) * ((1 - au) * at(iv, iu) + au * at(iv, iu + 1)) + av * ((1 - au) * at(iv + 1, iu) + au * at(iv + 1, iu + 1));
+}
+
+// Texture weight in [0, 1] on the surface coordinates (u, v) [metres].
+torch::Tensor texture(const std::string& kind, const torch::Tensor& u, const torch::Tensor& v, double scale_m,
+                      std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  if (kind == "flat") return torch::zeros_like(u);
+  if (kind == "noise" || kind == "edges") {
+    const torch::Tensor tex = pink_noise(128, 1.0 + U(rng), rng);
+    const double ph_u = U(rng), ph_v = U(rng);
+    torch::Tensor t = sample_periodic(tex, u / (4.0 * scale_m) + ph_u, v / (4.0 * scale_m) + ph_v);
+    if (kind == "edges") t = (t > 0.35 + 0.3 * U(rng)).to(torch::kFloat64);
+    return t;
+  }
+  const double period = scale_m * (0.15 + 0.6 * U(rng)), phi = M_PI * U(rng);
+  if (kind == "stripes") {
+    const torch::Tensor w = (std::cos(phi) * u + std::sin(phi) * v) * (2.0 * M_PI / period);
+    return 0.5 + 0.5 * torch::tanh(6.0 * torch::sin(w));
+  }
+  // checker
+  const torch::Tensor a = torch::sin(u * (2.0 * M_PI / period)), b = torch::sin(v * (2.0 * M_PI / period));
+  return (a * b > 0).to(torch::kFloat64);
+}
+
+struct Surface {
+  std::string what;
+  Hit hit;
+};
+
+struct Composite {
+  torch::Tensor t, id, nx, ny, nz;
+};
+Composite zbuffer(const std::vector<Surface>& s, int64_t H, int64_t W) {
+  Composite c{torch::full({H, W}, kInf, f64), torch::full({H, W}, -1, torch::kLong), torch::zeros({H, W}, f64),
+              torch::zeros({H, W}, f64), torch::zeros({H, W}, f64)};
+  for (size_t k = 0; k < s.size(); ++k) {
+    const torch::Tensor nearer = s[k].hit.t < c.t;
+    c.t = torch::where(nearer, s[k].hit.t, c.t);
+    c.id = torch::where(nearer, torch::full_like(c.id, int64_t(k)), c.id);
+    c.nx = torch::where(nearer, s[k].hit.nx, c.nx);
+    c.ny = torch::where(nearer, s[k].hit.ny, c.ny);
+    c.nz = torch::where(nearer, s[k].hit.nz, c.nz);
+  }
+  return c;
+}
+
+}  // namespace
+
+GeneratedScene generate_tabletop_scene(const GeneratorConfig& g, const ReflectanceLibrary& lib,
+                                       const std::vector<double>& wavelengths_m, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  auto uni = [&](double a, double b) { return a + (b - a) * U(rng); };
+  const int64_t H = g.height_px, W = g.width_px, L = int64_t(wavelengths_m.size());
+  const Rays r = make_rays(H, W, g.fov_deg);
+  const double dmin = g.depth_min_m, dmax = g.depth_max_m;
+  std::vector<Surface> surfaces;
+  std::map<std::string, int> counts;
+
+  // Back wall, tilted, its farthest visible point at most dmax.
+  const bool wall = U(rng) > 0.2;
+  double wall_z = dmax;
+  if (wall) {
+    const double a = uni(-15, 15) * M_PI / 180, b = uni(-10, 10) * M_PI / 180;
+    const std::array<double, 3> n{std::sin(a) * std::cos(b), std::sin(b), std::cos(a) * std::cos(b)};
+    wall_z = uni(0.85, 1.0) * dmax;
+    Hit h = hit_plane(r, n, n[2] * wall_z);
+    const double far = torch::where(torch::isfinite(h.t), h.t, torch::zeros_like(h.t)).max().item<double>();
+    if (far > dmax) {  // pull the plane in so nothing is beyond dmax
+      wall_z *= dmax / far;
+      h = hit_plane(r, n, n[2] * wall_z);
+    }
+    surfaces.push_back({"wall", h});
+  }
+  // Table: the plane y = y_t below the eye, nearest visible point >= dmin.
+  const bool table = !wall || U(rng) < 0.8;  // without a wall, a table keeps the scene mostly valid
+  const double y_t = uni(1.0, 1.6) * dmin * r.tan_v;
+  if (table) {
+    Hit h = hit_plane(r, {0, 1, 0}, y_t);
+    h.t = torch::where(h.t <= wall_z * 1.001, h.t, inf_like(h.t));  // the table ends at the wall
+    surfaces.push_back({"table", h});
+  }
+  // Objects, distances uniform in inverse depth.
+  const int64_t n_obj = std::uniform_int_distribution<int64_t>(g.objects_min, g.objects_max)(rng);
+  const double far_obj = 0.9 * wall_z;
+  for (int64_t k = 0; k < n_obj; ++k) {
+    const double inv = uni(1.0 / far_obj, 1.0 / dmin);
+    double zc = 1.0 / inv;
+    const double s = uni(0.08, 0.25) * zc * r.tan_h;  // size: 8-25 % of the half-width at that distance
+    zc = std::max(zc, dmin + 1.8 * s);                 // nearest surface stays beyond dmin
+    const double xc = uni(-0.9, 0.9) * zc * r.tan_h;
+    const bool on_table = table && U(rng) < 0.6 && zc * r.tan_v > y_t * 0.5;
+    const int kind = std::uniform_int_distribution<int>(0, 3)(rng);
+    if (kind == 0) {
+      const double yc = on_table ? y_t - s : uni(-0.8, 0.8) * zc * r.tan_v;
+      surfaces.push_back({"sphere", hit_sphere(r, {xc, yc, zc}, s)});
+    } else if (kind == 1) {
+      const std::array<double, 3> e{s * uni(0.5, 1.2), s * uni(0.5, 1.2), s * uni(0.5, 1.0)};
+      const double yc = on_table ? y_t - e[1] : uni(-0.8, 0.8) * zc * r.tan_v;
+      surfaces.push_back({"box", hit_box(r, {xc, yc, zc}, e, uni(0, M_PI / 2))});
+    } else if (kind == 2) {
+      const double h = s * uni(1.0, 3.0);
+      const double bottom = on_table ? y_t : uni(-0.5, 0.8) * zc * r.tan_v;
+      surfaces.push_back({"cylinder", hit_cylinder(r, xc, zc, s * uni(0.4, 0.8), bottom - h, bottom)});
+    } else {
+      const double yaw = uni(-50, 50) * M_PI / 180, pitch = uni(-30, 30) * M_PI / 180;
+      const std::array<double, 3> u{std::cos(yaw), 0, std::sin(yaw)};
+      const std::array<double, 3> v{-std::sin(yaw) * std::sin(pitch), std::cos(pitch), std::cos(yaw) * std::sin(pitch)};
+      const double a = s * uni(0.8, 1.5), b = s * uni(0.8, 1.5);
+      const double yc = on_table ? y_t - b * std::cos(pitch) : uni(-0.8, 0.8) * zc * r.tan_v;
+      surfaces.push_back({"card", hit_card(r, {xc, yc, zc}, u, v, a, b)});
+    }
+    counts[surfaces.back().what]++;
+  }
+
+  const Composite c = zbuffer(surfaces, H, W);
+  const torch::Tensor hit = torch::isfinite(c.t);
+  torch::Tensor depth = torch::where(hit, c.t, torch::full_like(c.t, dmax));
+  // Surface coordinates: the two world axes least aligned with the normal.
+  const torch::Tensor px = depth * r.dx, py = depth * r.dy, pz = depth;
+  const torch::Tensor ax = c.nx.abs(), ay = c.ny.abs(), az = c.nz.abs();
+  const torch::Tensor major_x = (ax >= ay) & (ax >= az), major_y = (ay > ax) & (ay >= az);
+  const torch::Tensor su = torch::where(major_x, pz, px), sv = torch::where(major_y, pz, py);
+  // Shading: one light up-left-front of the scene.
+  const double ll = std::sqrt(0.4 * 0.4 + 0.6 * 0.6 + 0.7 * 0.7);
+  const std::array<double, 3> l{-0.4 / ll, -0.6 / ll, -0.7 / ll};
+  torch::Tensor ndotl = c.nx * l[0] + c.ny * l[1] + c.nz * l[2];
+  const torch::Tensor facing = (c.nx * r.dx + c.ny * r.dy + c.nz) < 0;  // normal towards the camera
+  ndotl = torch::where(facing, ndotl, -ndotl);
+  const torch::Tensor shade = 0.3 + 0.7 * ndotl.clamp_min(0);
+
+  torch::Tensor refl = torch::zeros({L, H, W}, f64);
+  const std::vector<std::string> kinds{"flat", "noise", "noise", "stripes", "checker", "edges"};
+  std::vector<std::string> used_textures;
+  for (size_t k = 0; k < surfaces.size(); ++k) {
+    const torch::Tensor sel = (c.id == int64_t(k));
+    if (!sel.any().item<bool>()) continue;
+    const std::string kind = kinds[std::uniform_int_distribution<size_t>(0, kinds.size() - 1)(rng)];
+    const torch::Tensor s1 = lib.draw(rng), s2 = lib.draw(rng);
+    const double scale = surfaces[k].what == "wall" || surfaces[k].what == "table" ? 0.3 : 0.08;
+    const torch::Tensor t = texture(kind, su, sv, scale, rng);
+    const torch::Tensor spec = s1.view({L, 1, 1}) * (1 - t) + s2.view({L, 1, 1}) * t;
+    refl = torch::where(sel.unsqueeze(0), spec * shade.unsqueeze(0), refl);
+    used_textures.push_back(kind);
+  }
+  // Background (no wall): a dim neutral, marked invalid.
+  refl = torch::where(hit.unsqueeze(0), refl, torch::full_like(refl, 0.05));
+
+  // Structured-light shadows beside near-to-far edges (the far side, to the right).
+  torch::Tensor valid = hit.clone();
+  if (U(rng) < 0.6) {
+    const int64_t w = std::uniform_int_distribution<int64_t>(2, 6)(rng);
+    torch::Tensor shadow = torch::zeros_like(valid);
+    for (int64_t k = 1; k <= w; ++k)
+      shadow.index({Slice(), Slice(k, None)}) |= depth.index({Slice(), Slice(k, None)}) > 1.1 * depth.index({Slice(), Slice(None, W - k)});
+    valid = valid & ~shadow;
+  }
+  GeneratedScene out;
+  out.scene.wavelengths_m = wavelengths_m;
+  out.scene.kind = SpectralKind::Reflectance;
+  out.scene.spectral = refl.clamp(0.0, 1.0).to(torch::kFloat32);
+  out.scene.depth_m = depth.to(torch::kFloat32).unsqueeze(0);
+  out.scene.mask = valid.to(torch::kFloat32).unsqueeze(0);
+  const torch::Tensor dv = depth.masked_select(valid);
+  char buf[256];
+  std::string objs;
+  for (const auto& [k, n] : counts) objs += (objs.empty() ? "" : ", ") + std::to_string(n) + " " + k + (n > 1 ? "s" : "");
+  std::snprintf(buf, sizeof buf, "tabletop: %s%s%lld objects (%s); depth %.2f-%.2f m; %.1f %% invalid",
+                wall ? "wall, " : "no wall (background invalid), ", table ? "table, " : "", (long long)n_obj,
+                objs.empty() ? "none" : objs.c_str(), dv.numel() ? dv.min().item<double>() : 0.0,
+                dv.numel() ? dv.max().item<double>() : 0.0, 100.0 * (1.0 - valid.to(torch::kFloat64).mean().item<double>()));
+  out.notes = buf;
+  return out;
+}
+
+GeneratedScene generate_colorchecker_scene(const GeneratorConfig& g, const ReflectanceLibrary& lib,
+                                           const std::vector<double>& wavelengths_m,
+                                           std::vector<std::array<int64_t, 4>>* boxes) {
+  const int64_t H = g.height_px, W = g.width_px, L = int64_t(wavelengths_m.size());
+  const double z = g.colorchecker_depth_m;
+  // Board: 80 % of the width (or of the height × 1.5), 6 × 4 cells, each patch 80 % of its cell.
+  const double board_w = std::min(0.8 * double(W), 0.8 * double(H) * 1.5);
+  const double cell = board_w / 6.0, board_h = 4.0 * cell;
+  const double x0 = 0.5 * (double(W) - board_w), y0 = 0.5 * (double(H) - board_h);
+  torch::Tensor refl = lib.patch("neutral_5").view({L, 1, 1}).expand({L, H, W}).clone();
+  torch::Tensor depth = torch::full({H, W}, std::min(g.depth_max_m, std::max(2.0 * z, z + 0.3)), f64);
+  const auto board_px = [&](double v) { return int64_t(std::lround(v)); };
+  const int64_t bx0 = board_px(x0), bx1 = board_px(x0 + board_w), by0 = board_px(y0), by1 = board_px(y0 + board_h);
+  refl.index_put_({Slice(), Slice(by0, by1), Slice(bx0, bx1)}, (lib.patch("black_2") * 0.8).view({L, 1, 1}));
+  depth.index_put_({Slice(by0, by1), Slice(bx0, bx1)}, z);
+  if (boxes) boxes->clear();
+  const auto& names = lib.patch_names();
+  for (int64_t i = 0; i < 24; ++i) {
+    const int64_t row = i / 6, col = i % 6;
+    const double cx0 = x0 + double(col) * cell + 0.1 * cell, cy0 = y0 + double(row) * cell + 0.1 * cell;
+    const int64_t px0 = board_px(cx0), px1 = board_px(cx0 + 0.8 * cell), py0 = board_px(cy0), py1 = board_px(cy0 + 0.8 * cell);
+    refl.index_put_({Slice(), Slice(py0, py1), Slice(px0, px1)}, lib.patch(names[size_t(i)]).view({L, 1, 1}));
+    if (boxes) {  // inner region: a further 15 % margin against blur at the patch edges
+      const int64_t m = std::max<int64_t>(1, (px1 - px0) * 15 / 100);
+      boxes->push_back({px0 + m, py0 + m, px1 - m, py1 - m});
+    }
+  }
+  GeneratedScene out;
+  out.scene.wavelengths_m = wavelengths_m;
+  out.scene.kind = SpectralKind::Reflectance;
+  out.scene.spectral = refl.to(torch::kFloat32);
+  out.scene.depth_m = depth.to(torch::kFloat32).unsqueeze(0);
+  out.scene.mask = torch::ones({1, H, W}, torch::kFloat32);
+  char buf[160];
+  std::snprintf(buf, sizeof buf, "colorchecker: the 24 patches at %.2f m on a dark board, grey wall behind; for spectral evaluation under D65, never for training", z);
+  out.notes = buf;
+  return out;
+}
+
+}  // namespace hsd::data

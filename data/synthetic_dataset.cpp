@@ -1,0 +1,86 @@
+#include "data/synthetic_dataset.h"
+
+#include <array>
+#include <cstdio>
+
+#include <torch/torch.h>
+
+#include "common/atomic_file.h"
+#include "common/error.h"
+#include "common/log.h"
+#include "data/image_io.h"
+#include "data/preview.h"
+#include "data/reflectance_library.h"
+#include "data/scene_generator.h"
+#include "optics/spectrum.h"
+
+namespace hsd::data {
+
+namespace {
+// Seed of scene i of a split: distinct streams per split, stable when counts change.
+uint64_t scene_seed(uint64_t seed, int split, int64_t i) {
+  uint64_t x = seed * 0x9E3779B97F4A7C15ull + uint64_t(split) * 0xBF58476D1CE4E5B9ull + uint64_t(i) * 0x94D049BB133111EBull;
+  x ^= x >> 31;
+  return x * 0xD6E8FEB86659FD93ull;
+}
+
+}  // namespace
+
+Manifest generate_dataset(const Config& cfg, const std::string& dir) {
+  const auto& g = cfg.data.generator;
+  const std::vector<double> bands = cfg.optics.wavelengths_m();
+  const double bw = cfg.optics.band_width_m();
+  const ReflectanceLibrary lib(bands, bw);  // checks the spectral tables before any output
+  const torch::Tensor d65 = optics::illuminant_bands("D65", bands, bw);
+  const std::array<std::pair<const char*, int64_t>, 3> splits{
+      {{"train", g.train_scenes}, {"val", g.val_scenes}, {"test", g.test_scenes}}};
+  int64_t total = g.colorchecker ? 1 : 0;
+  for (const auto& [name, n] : splits) total += n;
+  if (total == 0) input_error("config key data.generator", "asks for no scenes at all");
+  make_dirs(dir);
+
+  Manifest m;
+  m.wavelengths_nm = cfg.optics.wavelengths_nm;
+  m.band_width_nm = bw * 1e9;
+  auto write_scene = [&](const std::string& name, const GeneratedScene& s, const std::string& split) {
+    write_scene_exr(dir + "/" + name + ".exr", s.scene, g.half);
+    write_srgb_png(dir + "/" + name + "_srgb.png", spectral_to_linear_srgb(s.scene.spectral, bands, bw, d65));
+    write_depth_png(dir + "/" + name + "_depth.png", s.scene.depth_m, s.scene.mask, g.depth_min_m, g.depth_max_m);
+    m.scenes.push_back({name + ".exr", split, s.notes});
+  };
+  log::Progress progress("scenes", long(total));
+  for (int split = 0; split < 3; ++split) {
+    const auto& [name, n] = splits[size_t(split)];
+    for (int64_t i = 0; i < n; ++i) {
+      char stem[64];
+      std::snprintf(stem, sizeof stem, "scene_%s_%03lld", name, (long long)i);
+      write_scene(stem, generate_tabletop_scene(g, lib, bands, scene_seed(cfg.seed, split, i)), name);
+      progress.step();
+    }
+  }
+  if (g.colorchecker) {
+    std::vector<std::array<int64_t, 4>> boxes;
+    write_scene("colorchecker", generate_colorchecker_scene(g, lib, bands, &boxes), "test");
+    Json patches = Json::array();
+    for (size_t i = 0; i < boxes.size(); ++i)
+      patches.push_back(Json{{"name", lib.patch_names()[i]}, {"box_xyxy", {boxes[i][0], boxes[i][1], boxes[i][2], boxes[i][3]}}});
+    write_text_file(dir + "/colorchecker_layout.json",
+                    Json{{"scene", "colorchecker.exr"}, {"illuminant", "D65"}, {"depth_m", g.colorchecker_depth_m},
+                         {"patches", patches}}.dump(2) + "\n");
+    progress.step();
+  }
+  progress.finish();
+  write_manifest(dir, m);  // last: a folder with a manifest is complete
+  return m;
+}
+
+std::string ensure_dataset(const Config& cfg) {
+  if (has_manifest(cfg.data.root)) return cfg.data.root;
+  if (!cfg.data.generate_if_missing)
+    input_error("config key data.root", "\"" + cfg.data.root + "\" has no manifest.json (run hsd_scenes, or set data.generate_if_missing)");
+  log::info("no dataset in " + cfg.data.root + ": generating one (data.generator)");
+  generate_dataset(cfg, cfg.data.root);
+  return cfg.data.root;
+}
+
+}  // namespace hsd::data
