@@ -22,6 +22,8 @@ const char* kUsage =
     "  NAME: sim   forward+backward of PSF + sensor image formation on one patch,\n"
     "              with the straightforward baseline and the floor of bare GEMMs/FFTs;\n"
     "              --patch 256 --bands 25 --depths 7 --psf 63 --pupil 512 set the work\n"
+    "  NAME: data  the data path: scene generation, loading with 1 and N threads,\n"
+    "              the patch sampler and patch extraction (--scenes 8)\n"
     "  --config defaults to configs/paper.json of the source tree.\n"
     "  --json prints exactly one JSON object on stdout.";
 
@@ -37,7 +39,8 @@ int run(const AppArgs& args) {
   int rc = 0;
   if (name == "psf") rc = bench::bench_psf(cfg, args, out);
   else if (name == "sim") rc = bench::bench_sim(cfg, args, out);
-  else input_error("hsd_bench " + name, "unknown benchmark (known: psf, sim)");
+  else if (name == "data") rc = bench::bench_data(cfg, args, out);
+  else input_error("hsd_bench " + name, "unknown benchmark (known: psf, sim, data)");
   out.json["hsd_version"] = HSD_VERSION;
   out.json["config"] = config;
   if (json) std::printf("%s\n", out.json.dump().c_str());
@@ -47,6 +50,6 @@ int run(const AppArgs& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  AppSpec spec{"hsd_bench", kUsage, {"--threads", "--repeats", "--patch", "--bands", "--depths", "--psf", "--pupil"}, {"--json", "--no-baseline"}, false, false};
+  AppSpec spec{"hsd_bench", kUsage, {"--threads", "--repeats", "--patch", "--bands", "--depths", "--psf", "--pupil", "--scenes"}, {"--json", "--no-baseline"}, false, false};
   return run_app(spec, argc, argv, run);
 }

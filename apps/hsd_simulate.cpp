@@ -11,6 +11,7 @@
 #include "common/error.h"
 #include "common/log.h"
 #include "data/image_io.h"
+#include "data/band_resample.h"
 #include "data/scene_exr.h"
 #include "optics/doe.h"
 #include "optics/psf.h"
@@ -29,12 +30,6 @@ const char* kUsage =
     "  through the configured DOE. Writes DIR/sensor.exr, DIR/sensor.png,\n"
     "  DIR/psf_atlas.png and DIR/config.json.";
 
-std::string band_summary(const std::vector<double>& w) {
-  char buf[96];
-  std::snprintf(buf, sizeof buf, "%zu bands, %.4g-%.4g nm", w.size(), w.front() * 1e9, w.back() * 1e9);
-  return buf;
-}
-
 int run(const AppArgs& args) {
   const std::string scene_path = args.option("--scene", "");
   if (scene_path.empty()) input_error("--scene", "required (a spectral OpenEXR scene)");
@@ -42,13 +37,10 @@ int run(const AppArgs& args) {
   const torch::Device device = resolve_device(cfg.device);
   const auto t0 = std::chrono::steady_clock::now();
 
-  const data::SpectralScene scene = data::read_scene_exr(scene_path);
   const std::vector<double> bands = cfg.optics.wavelengths_m();
-  bool match = scene.wavelengths_m.size() == bands.size();
-  for (size_t l = 0; match && l < bands.size(); ++l) match = std::fabs(scene.wavelengths_m[l] - bands[l]) < 1e-11;
-  if (!match)
-    input_error(scene_path, "scene bands (" + band_summary(scene.wavelengths_m) +
-                                ") do not match optics.wavelengths_nm (" + band_summary(bands) + ")");
+  // Other bands are resampled to the config's by band integration (with a warning).
+  const data::SpectralScene scene =
+      data::resample_scene_bands(data::read_scene_exr(scene_path), bands, cfg.optics.band_width_m(), scene_path);
   setup_threads(cfg.threads);  // inputs are checked: from here on, progress output
   make_dirs(args.out_dir);
 

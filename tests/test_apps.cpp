@@ -4,7 +4,10 @@
 #include <array>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <map>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <nlohmann/json.hpp>
 
@@ -22,7 +25,8 @@ struct Run {
   std::string err;
 };
 Run run(const std::string& args) {
-  const auto errfile = fs::temp_directory_path() / "hsd_test_app_stderr.txt";
+  // One file per test process: ctest -j runs test cases side by side.
+  const auto errfile = fs::temp_directory_path() / ("hsd_test_app_stderr_" + std::to_string(::getpid()) + ".txt");
   const std::string cmd = "cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) + "/" + args +
                           " > /dev/null 2> " + errfile.string();
   const int status = std::system(cmd.c_str());
@@ -179,6 +183,22 @@ TEST_CASE("hsd_simulate refuses bad scenes with exit 2 naming the file", "[app][
   CHECK_FALSE(fs::exists(fs::path(out) / "sensor.exr"));
 }
 
+TEST_CASE("hsd_bench data --json measures the data path", "[app][bench][data]") {
+  const auto [out, code] = capture("cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) +
+                                   "/hsd_bench data --json --config configs/tiny.json --scenes 2 --threads 2"
+                                   " --set data.generator.width_px=64 --set data.generator.height_px=48"
+                                   " --set data.patch_size_px=16 --set data.patches=100 2>/dev/null");
+  CHECK(code == 0);
+  INFO("stdout: " << out);
+  REQUIRE(lines(out) == 1);
+  const auto j = nlohmann::json::parse(out);
+  for (const char* k : {"seconds_generate_per_scene", "seconds_load_1_thread", "seconds_load_n_threads",
+                        "seconds_draw_patches", "seconds_extract_per_patch", "sampler_candidates", "threads"})
+    CHECK(j.contains(k));
+  CHECK(j["sampler_candidates"].get<int64_t>() > 0);
+  CHECK(run("hsd_bench data --scenes 0").code == 2);
+}
+
 TEST_CASE("hsd_bench sim --json reports the contract's keys", "[app][bench]") {
   const auto [out, code] = capture("cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) +
                                    "/hsd_bench sim --json --patch 32 --bands 3 --depths 3 --psf 9 --pupil 64 "
@@ -194,4 +214,94 @@ TEST_CASE("hsd_bench sim --json reports the contract's keys", "[app][bench]") {
   CHECK(j["pupil"] == 64);
   CHECK(j["threads"] == 2);
   CHECK(run("hsd_bench sim --psf 8").code == 2);
+}
+
+TEST_CASE("hsd_scenes writes a deterministic dataset with manifest, previews and the ColorChecker", "[app][data]") {
+  const fs::path base = fs::temp_directory_path() / "hsd_test_scenes";
+  fs::remove_all(base);
+  const std::string sets =
+      " --set data.generator.train_scenes=2 --set data.generator.val_scenes=1 --set data.generator.test_scenes=1"
+      " --set data.generator.width_px=64 --set data.generator.height_px=48";
+  for (const char* d : {"a", "b"}) {
+    const Run r = run("hsd_scenes --config configs/tiny.json" + sets + " --out " + (base / d).string());
+    INFO(r.err);
+    REQUIRE(r.code == 0);
+  }
+  const fs::path a = base / "a";
+  const auto m = nlohmann::json::parse(std::ifstream(a / "manifest.json"));
+  REQUIRE(m["scenes"].size() == 5);
+  std::map<std::string, int> splits;
+  for (const auto& s : m["scenes"]) {
+    splits[s["split"].get<std::string>()]++;
+    const std::string stem = fs::path(s["file"].get<std::string>()).stem().string();
+    CHECK(fs::exists(a / (stem + "_srgb.png")));
+    CHECK(fs::exists(a / (stem + "_depth.png")));
+    CHECK_FALSE(s["notes"].get<std::string>().empty());
+    // Same seed, same scenes.
+    const data::SpectralScene x = data::read_scene_exr((a / s["file"].get<std::string>()).string());
+    const data::SpectralScene y = data::read_scene_exr((base / "b" / s["file"].get<std::string>()).string());
+    CHECK(x.spectral.equal(y.spectral));
+    CHECK(x.depth_m.equal(y.depth_m));
+    CHECK(x.wavelengths_m.size() == 3);
+  }
+  CHECK(splits["train"] == 2);
+  CHECK(splits["val"] == 1);
+  CHECK(splits["test"] == 2);  // one generated, plus the ColorChecker (never train)
+  CHECK(m["scenes"][4]["file"] == "colorchecker.exr");
+  CHECK(m["scenes"][4]["split"] == "test");
+  const auto layout = nlohmann::json::parse(std::ifstream(a / "colorchecker_layout.json"));
+  CHECK(layout["patches"].size() == 24);
+  CHECK(fs::exists(a / "config.json"));
+  // A different seed gives different scenes.
+  const Run r = run("hsd_scenes --config configs/tiny.json" + sets + " --set seed=9 --out " + (base / "c").string());
+  REQUIRE(r.code == 0);
+  CHECK_FALSE(data::read_scene_exr((a / "scene_train_000.exr").string())
+                  .spectral.equal(data::read_scene_exr((base / "c" / "scene_train_000.exr").string()).spectral));
+  // Bad generator keys: exit 2, one line naming the key, nothing written.
+  for (const auto& [set, key] : std::vector<std::pair<std::string, std::string>>{
+           {"data.generator.width_px=4", "data.generator.width_px"},
+           {"data.generator.depth_max_m=0.3", "data.generator.depth_max_m"},
+           {"data.generator.colour=1", "data.generator.colour"},
+           {"data.illuminants=[\"D65\",3]", "data.illuminants"}}) {
+    const Run bad = run("hsd_scenes --config configs/tiny.json --set " + set + " --out " + (base / "bad").string());
+    CHECK(bad.code == 2);
+    CHECK_THAT(bad.err, Catch::Contains(key));
+    CHECK(lines(bad.err) == 1);
+  }
+  CHECK_FALSE(fs::exists(base / "bad"));
+}
+
+TEST_CASE("hsd_import turns the real Middlebury Aloe picture into a valid scene", "[app][data]") {
+  const fs::path out = fs::temp_directory_path() / "hsd_test_import";
+  fs::remove_all(out);
+  const std::string real = "data/real/middlebury2006_aloe/";
+  const Run r = run("hsd_import --config configs/tiny.json --rgb " + real + "aloeL.jpg --disparity " + real +
+                    "aloeGT.png --scale 0.1 --name aloe --out " + out.string());
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  const data::SpectralScene s = data::read_scene_exr((out / "aloe.exr").string());
+  CHECK(s.spectral.size(1) == 111);
+  CHECK(s.spectral.size(2) == 128);
+  const torch::Tensor valid = s.mask[0] > 0.5;
+  const double frac = valid.to(torch::kFloat64).mean().item<double>();
+  CHECK(frac > 0.9);   // 3.5 % of the disparities are unknown
+  CHECK(frac < 1.0);
+  const torch::Tensor z = s.depth_m[0].masked_select(valid);
+  CHECK(z.min().item<double>() == Approx(0.4).epsilon(1e-3));  // tiny.json inherits the generator's 0.4-2.5 m
+  CHECK(z.max().item<double>() == Approx(2.5).epsilon(1e-3));
+  CHECK(s.spectral.min().item<double>() >= 0.0);
+  CHECK(s.spectral.max().item<double>() <= 1.0);
+  const auto m = nlohmann::json::parse(std::ifstream(out / "manifest.json"));
+  REQUIRE(m["scenes"].size() == 1);
+  CHECK_THAT(m["scenes"][0]["notes"].get<std::string>(), Catch::Contains("lifted"));
+  // Bad inputs: exit 2 naming the file or flag.
+  Run bad = run("hsd_import --config configs/tiny.json --rgb " + real + "none.jpg --disparity " + real + "aloeGT.png --out " + out.string());
+  CHECK(bad.code == 2);
+  CHECK_THAT(bad.err, Catch::Contains("none.jpg"));
+  bad = run("hsd_import --config configs/tiny.json --rgb " + real + "aloeL.jpg --disparity " + real + "aloeL.jpg --out " + out.string());
+  CHECK(bad.code == 2);
+  CHECK_THAT(bad.err, Catch::Contains("single-channel"));
+  bad = run("hsd_import --config configs/tiny.json --rgb " + real + "aloeL.jpg --disparity " + real + "aloeGT.png --scale 2 --out " + out.string());
+  CHECK(bad.code == 2);
+  CHECK_THAT(bad.err, Catch::Contains("--scale"));
 }

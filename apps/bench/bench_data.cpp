@@ -1,0 +1,88 @@
+// hsd_bench data: the data path of training, measured in one run: generating
+// synthetic scenes (per scene), loading a split with 1 and with N threads,
+// building the patch sampler, drawing data.patches patch specs and extracting
+// (lighting included) patches of data.patch_size_px.
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <unistd.h>
+
+#include <torch/torch.h>
+
+#include "bench/bench_util.h"
+#include "bench/benches.h"
+#include "common/error.h"
+#include "common/log.h"
+#include "data/dataset.h"
+#include "data/illuminant_augment.h"
+#include "data/patch_sampler.h"
+#include "data/synthetic_dataset.h"
+
+namespace hsd::bench {
+
+int bench_data(Config cfg, const AppArgs& args, BenchOutput& out) {
+  const int64_t scenes = args.integer("--scenes", 8);
+  if (scenes < 1 || scenes > 1000) input_error("--scenes", "must be in [1, 1000]");
+  auto& g = cfg.data.generator;
+  g.train_scenes = scenes, g.val_scenes = 0, g.test_scenes = 0, g.colorchecker = false;
+  const std::string dir = (std::filesystem::temp_directory_path() / ("hsd_bench_data_" + std::to_string(::getpid()))).string();
+  std::filesystem::remove_all(dir);
+  using clock = std::chrono::steady_clock;
+  auto secs = [](clock::time_point a) { return std::chrono::duration<double>(clock::now() - a).count(); };
+  const auto bands = cfg.optics.wavelengths_m();
+  const double bw = cfg.optics.band_width_m();
+  const int threads = torch::get_num_threads();
+
+  log::info("generating " + std::to_string(scenes) + " scenes ...");
+  auto t = clock::now();
+  data::generate_dataset(cfg, dir);
+  const double t_gen = secs(t) / double(scenes);
+  const double mib = [&] {
+    double b = 0;
+    for (const auto& e : std::filesystem::directory_iterator(dir))
+      if (e.path().extension() == ".exr") b += double(e.file_size());
+    return b / double(scenes) / (1024.0 * 1024.0);
+  }();
+  t = clock::now();
+  const auto one = data::load_split(dir, "train", bands, bw, 1);
+  const double t_load1 = secs(t);
+  t = clock::now();
+  const auto many = data::load_split(dir, "train", bands, bw, threads);
+  const double t_loadn = secs(t);
+  t = clock::now();
+  const data::PatchSampler sampler(many, cfg.data.patch_size_px);
+  const double t_sampler = secs(t);
+  const data::IlluminantBank bank(cfg.data.illuminants, bands, bw);
+  t = clock::now();
+  const auto specs = sampler.draw(cfg.data.patches, cfg.seed, bank.size(), cfg.data.intensity_min, cfg.data.intensity_max);
+  const double t_draw = secs(t);
+  const int64_t n_extract = std::min<int64_t>(200, int64_t(specs.size()));
+  t = clock::now();
+  for (int64_t i = 0; i < n_extract; ++i) sampler.extract(specs[size_t(i)], &bank);
+  const double t_extract = secs(t) / double(n_extract);
+  std::filesystem::remove_all(dir);
+
+  out.json = Json{{"bench", "data"}, {"threads", threads}, {"scenes", scenes}, {"width_px", g.width_px},
+                  {"height_px", g.height_px}, {"bands", int64_t(bands.size())}, {"seconds_generate_per_scene", t_gen},
+                  {"mib_per_scene_exr", mib}, {"seconds_load_1_thread", t_load1}, {"seconds_load_n_threads", t_loadn},
+                  {"seconds_sampler_build", t_sampler}, {"sampler_candidates", sampler.candidates()},
+                  {"sampler_depth_bins", sampler.depth_bins_used()}, {"patches", cfg.data.patches},
+                  {"seconds_draw_patches", t_draw}, {"patch_px", cfg.data.patch_size_px},
+                  {"seconds_extract_per_patch", t_extract}};
+  char buf[512];
+  std::snprintf(buf, sizeof buf,
+                "data path: %lld scenes %lldx%lld, %zu bands, threads %d\n"
+                "generate            %8.3f s per scene (%.1f MiB EXR each)\n"
+                "load split          %8.3f s with 1 thread, %.3f s with %d (%.1fx)\n"
+                "patch sampler       %8.3f s to build (%lld fully valid %lld px windows, %lld depth bins)\n"
+                "draw %lld specs  %8.4f s\n"
+                "extract + light     %8.4f s per %lld px patch\n",
+                (long long)scenes, (long long)g.width_px, (long long)g.height_px, bands.size(), threads, t_gen, mib, t_load1,
+                t_loadn, threads, t_load1 / std::max(1e-9, t_loadn), t_sampler, (long long)sampler.candidates(),
+                (long long)cfg.data.patch_size_px, (long long)sampler.depth_bins_used(), (long long)cfg.data.patches, t_draw,
+                t_extract, (long long)cfg.data.patch_size_px);
+  out.text = buf;
+  return 0;
+}
+
+}  // namespace hsd::bench
