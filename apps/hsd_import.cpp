@@ -59,7 +59,8 @@ int run(const AppArgs& args) {
   if (in.focal_px < 0.0) input_error("--focal-px", "must be > 0");
   if (in.focal_px > 0.0 && !(in.baseline_m > 0.0)) input_error("--baseline-m", "must be > 0 with --focal-px");
   const std::string name = args.option("--name", std::filesystem::path(in.rgb_path).stem().string());
-  if (name.empty() || name.find('/') != std::string::npos) input_error("--name", "must be a plain file stem");
+  if (name.empty() || name.find('/') != std::string::npos || name.find("..") != std::string::npos)
+    input_error("--name", "must be a plain file stem (no '/', no '..')");
   const std::vector<double> bands = cfg.optics.wavelengths_m();
   const double bw = cfg.optics.band_width_m();
   const data::ReflectanceLibrary lib(bands, bw);
@@ -67,6 +68,9 @@ int run(const AppArgs& args) {
   const data::SpectralScene s = data::import_rgbd(in, lib, bands, bw, &notes);
   data::Manifest m;
   if (data::has_manifest(args.out_dir)) m = data::read_manifest(args.out_dir);  // checked before writing anything
+  for (const auto& e : m.scenes)
+    if (e.file == name + ".exr" && e.split != "test")
+      input_error("--name", "\"" + name + "\" is already a " + e.split + " scene in " + args.out_dir + "/manifest.json");
   setup_threads(cfg.threads);
   make_dirs(args.out_dir);
   data::write_scene_exr(args.out_dir + "/" + name + ".exr", s, cfg.data.generator.half);

@@ -24,7 +24,8 @@ std::vector<LoadedScene> load_split(const std::string& root, const std::string& 
   std::vector<std::exception_ptr> errors(static_cast<size_t>(n));
   std::atomic<int64_t> next{0};
   auto work = [&] {
-    // Each scene is one task; a scene's tensor ops run single-threaded here.
+    // Each scene is one task (file reading dominates; a scene's tensor ops may
+    // use their own intra-op threads).
     for (int64_t i = next++; i < n; i = next++) {
       const auto& e = entries[size_t(i)];
       try {
@@ -36,7 +37,10 @@ std::vector<LoadedScene> load_split(const std::string& root, const std::string& 
     }
   };
   std::vector<std::thread> pool;
-  for (int64_t t = 1; t < T; ++t) pool.emplace_back(work);
+  try {
+    for (int64_t t = 1; t < T; ++t) pool.emplace_back(work);
+  } catch (...) {  // could not start a thread: the ones running finish the work
+  }
   work();
   for (auto& th : pool) th.join();
   for (auto& err : errors)  // the first failing scene in manifest order, whatever the timing

@@ -47,7 +47,7 @@ class PatchSampler {
   struct Candidate {
     int64_t scene, y, x;
   };
-  const std::vector<LoadedScene>& scenes_;
+  std::vector<LoadedScene> scenes_;  // a copy: tensors are shared, not duplicated
   int64_t patch_;
   std::vector<std::vector<Candidate>> bins_;
   int64_t total_ = 0;

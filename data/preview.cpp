@@ -37,7 +37,7 @@ void write_depth_png(const std::string& path, const torch::Tensor& depth_m, cons
                      double far_m) {
   const torch::Tensor d = depth_m.detach().to(torch::kFloat64).cpu().reshape({depth_m.size(-2), depth_m.size(-1)});
   const int64_t H = d.size(0), W = d.size(1);
-  const double lo = 1.0 / far_m, hi = 1.0 / near_m;
+  const double lo = 1.0 / far_m, hi = far_m > near_m ? 1.0 / near_m : lo + 1e-9;  // guarded
   const torch::Tensor v = ((1.0 / d.clamp_min(1e-9) - lo) / (hi - lo)).clamp(0.0, 1.0);  // 1 = near
   const torch::Tensor g8 = (v * 255.0 + 0.5).to(torch::kUInt8).contiguous();
   cv::Mat grey(int(H), int(W), CV_8UC1, g8.data_ptr<uint8_t>());
@@ -53,7 +53,7 @@ void write_depth_png(const std::string& path, const torch::Tensor& depth_m, cons
   cv::Mat canvas(int(H), int(W) + pad + bar_w + label_w, CV_8UC3, cv::Scalar(255, 255, 255));
   colour.copyTo(canvas(cv::Rect(0, 0, int(W), int(H))));
   cv::Mat ramp(int(H), 1, CV_8UC1);
-  for (int y = 0; y < int(H); ++y) ramp.at<uchar>(y, 0) = cv::saturate_cast<uchar>(255.0 * (1.0 - double(y) / double(H - 1)));
+  for (int y = 0; y < int(H); ++y) ramp.at<uchar>(y, 0) = cv::saturate_cast<uchar>(255.0 * (1.0 - double(y) / double(std::max<int64_t>(H - 1, 1))));
   cv::Mat ramp_c;
   cv::applyColorMap(ramp, ramp_c, cv::COLORMAP_TURBO);
   cv::resize(ramp_c, ramp_c, cv::Size(bar_w, int(H)), 0, 0, cv::INTER_NEAREST);
@@ -64,7 +64,7 @@ void write_depth_png(const std::string& path, const torch::Tensor& depth_m, cons
     const double inv = hi - f * (hi - lo);
     char buf[32];
     std::snprintf(buf, sizeof buf, "%.2f m", 1.0 / inv);
-    const int y = std::clamp(int(f * double(H - 1)) + 4, 10, int(H) - 2);
+    const int y = std::max(10, std::min(int(f * double(H - 1)) + 4, int(H) - 2));
     cv::putText(canvas, buf, cv::Point(int(W) + pad + bar_w + 3, y), cv::FONT_HERSHEY_SIMPLEX, font, cv::Scalar(0, 0, 0), 1,
                 cv::LINE_AA);
   }

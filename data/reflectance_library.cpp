@@ -25,7 +25,12 @@ ReflectanceLibrary::ReflectanceLibrary(const std::vector<double>& wavelengths_m,
   // standard-normal coefficients reproduce the patches' spread.
   const auto svd = torch::linalg_svd(patches_ - mean_, /*full_matrices=*/false);
   const int64_t K = std::min<int64_t>(4, int64_t(wavelengths_m.size()));
-  basis_ = std::get<2>(svd).narrow(0, 0, K) * (std::get<1>(svd).narrow(0, 0, K) / std::sqrt(24.0)).view({K, 1});
+  torch::Tensor V = std::get<2>(svd).narrow(0, 0, K);
+  // Singular vectors have arbitrary signs (LAPACK builds differ): make each
+  // row's largest component positive, so draws are the same everywhere.
+  const torch::Tensor idx = V.abs().argmax(1, true);
+  V = V * torch::sign(V.gather(1, idx));
+  basis_ = V * (std::get<1>(svd).narrow(0, 0, K) / std::sqrt(24.0)).view({K, 1});
 }
 
 torch::Tensor ReflectanceLibrary::patch(const std::string& name) const {
@@ -39,11 +44,16 @@ torch::Tensor ReflectanceLibrary::draw(std::mt19937_64& rng) const {
   std::uniform_int_distribution<int64_t> pick(0, 23);
   const double kind = U(rng);
   torch::Tensor s;
+  // Every draw in a named local: the order of evaluation of operands is unspecified.
   if (kind < 0.35) {
-    s = patches_[pick(rng)] * (0.7 + 0.3 * U(rng));  // a patch, a little darker or as is
+    const int64_t i = pick(rng);
+    const double dim = 0.7 + 0.3 * U(rng);
+    s = patches_[i] * dim;  // a patch, a little darker or as is
   } else if (kind < 0.65) {
     const double a = U(rng);
-    s = a * patches_[pick(rng)] + (1.0 - a) * patches_[pick(rng)];
+    const int64_t i = pick(rng);
+    const int64_t j = pick(rng);
+    s = a * patches_[i] + (1.0 - a) * patches_[j];
   } else {
     std::normal_distribution<double> N(0.0, 1.0);
     std::vector<double> c;

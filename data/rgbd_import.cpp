@@ -22,7 +22,12 @@ torch::Tensor lift_srgb_to_reflectance(const torch::Tensor& linear_srgb, const R
   const torch::Tensor eye = torch::eye(L, torch::kFloat64).view({L, L, 1});
   const torch::Tensor M = spectral_to_linear_srgb(eye, wavelengths_m, band_width_m, d65, false).to(torch::kFloat64).view({3, L});
   const torch::Tensor B = lib.basis().narrow(0, 0, std::min<int64_t>(3, lib.basis().size(0)));  // [3, L]
+  if (L < 3 || B.size(0) < 3)
+    input_error("config key optics.wavelengths_nm", "lifting RGB to spectra needs at least 3 bands");
   const torch::Tensor A = torch::mm(M, B.t());                                                 // [3, 3]
+  const torch::Tensor sv = torch::linalg_svdvals(A);
+  if (!(sv.min().item<double>() > 1e-6 * sv.max().item<double>()))
+    input_error("config key optics.wavelengths_nm", "these bands cannot tell R, G and B apart (the lifting is singular)");
   const torch::Tensor rhs = linear_srgb.to(torch::kFloat64).reshape({3, H * W}) - torch::mv(M, lib.mean()).view({3, 1});
   const torch::Tensor coef = torch::linalg_solve(A, rhs);                                      // [3, H·W]
   return (lib.mean().view({L, 1}) + torch::mm(B.t(), coef)).clamp(0.0, 1.0).view({L, H, W}).to(torch::kFloat32);
@@ -60,7 +65,8 @@ SpectralScene import_rgbd(const RgbdImport& in, const ReflectanceLibrary& lib, c
   s.kind = SpectralKind::Reflectance;
   s.spectral = lift_srgb_to_reflectance(v, lib, wavelengths_m, band_width_m);
   const torch::Tensor d = torch::from_blob(d32.data, {H, W}, torch::kFloat32).clone().to(torch::kFloat64);
-  const torch::Tensor known = d > 0;
+  torch::Tensor known = d > 0;
+  if (in.focal_px > 0.0) known = known & (d + in.doffs_px * in.scale > 0);  // a bad calibration: no depth there
   if (!known.any().item<bool>()) input_error(in.disparity_path, "has no known disparity (all 0)");
   torch::Tensor z;
   char buf[320];

@@ -46,7 +46,7 @@ std::optional<SpectralChannel> parse_spectral_channel(const std::string& name) {
 
 std::string spectral_channel_name(const std::string& prefix, double wavelength_m) {
   char buf[64];
-  std::snprintf(buf, sizeof buf, "%.6g", wavelength_m * 1e9);
+  std::snprintf(buf, sizeof buf, "%.10g", wavelength_m * 1e9);
   std::string v = buf;
   for (char& c : v)
     if (c == '.') c = ',';

@@ -71,7 +71,7 @@ Hit hit_sphere(const Rays& r, std::array<double, 3> C, double rad) {
   return {t, (tt * r.dx - C[0]) / rad, (tt * r.dy - C[1]) / rad, (tt - C[2]) / rad};
 }
 
-// Vertical cylinder: axis through (cx, ·, cz), radius rad, y in [y_top, y_bottom] (y down), capped on top.
+// Vertical cylinder: axis through (cx, ·, cz), radius rad, y in [y_top, y_bottom] (y down), capped at both ends.
 Hit hit_cylinder(const Rays& r, double cx, double cz, double rad, double y_top, double y_bottom) {
   const torch::Tensor A = r.dx * r.dx + 1.0;
   const torch::Tensor B = -2.0 * (r.dx * cx + cz);
@@ -86,9 +86,16 @@ Hit hit_cylinder(const Rays& r, double cx, double cz, double rad, double y_top, 
   torch::Tensor tc = y_top / r.dy;
   const torch::Tensor qx = tc * r.dx - cx, qz = tc - cz;
   tc = torch::where((r.dy.abs() > 1e-12) & (tc > 0) & (qx * qx + qz * qz <= rad * rad), tc, inf_like(tc));
-  const torch::Tensor cap = tc < side.t;
-  return {torch::where(cap, tc, side.t), torch::where(cap, torch::zeros_like(t), side.nx),
-          torch::where(cap, -torch::ones_like(t), side.ny), torch::where(cap, torch::zeros_like(t), side.nz)};
+  // Bottom cap: plane y = y_bottom (seen from below when the cylinder floats above the eye).
+  torch::Tensor tb = y_bottom / r.dy;
+  const torch::Tensor bx = tb * r.dx - cx, bz = tb - cz;
+  tb = torch::where((r.dy.abs() > 1e-12) & (tb > 0) & (bx * bx + bz * bz <= rad * rad), tb, inf_like(tb));
+  const torch::Tensor top = (tc < side.t) & (tc <= tb), bottom = (tb < side.t) & (tb < tc);
+  const torch::Tensor zero = torch::zeros_like(t), one = torch::ones_like(t);
+  return {torch::where(top, tc, torch::where(bottom, tb, side.t)),
+          torch::where(top | bottom, zero, side.nx),
+          torch::where(top, -one, torch::where(bottom, one, side.ny)),
+          torch::where(top | bottom, zero, side.nz)};
 }
 
 // Box: centre C, half extents e, rotated by theta about the vertical (slab method in the box frame).
@@ -223,7 +230,7 @@ GeneratedScene generate_tabletop_scene(const GeneratorConfig& g, const Reflectan
   const double y_t = uni(1.0, 1.6) * dmin * r.tan_v;
   if (table) {
     Hit h = hit_plane(r, {0, 1, 0}, y_t);
-    h.t = torch::where(h.t <= wall_z * 1.001, h.t, inf_like(h.t));  // the table ends at the wall
+    h.t = torch::where(h.t <= std::min(wall_z * 1.001, dmax), h.t, inf_like(h.t));  // the table ends at the wall (or at dmax)
     surfaces.push_back({"table", h});
   }
   // Objects, distances uniform in inverse depth.

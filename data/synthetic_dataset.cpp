@@ -2,6 +2,7 @@
 
 #include <array>
 #include <cstdio>
+#include <filesystem>
 
 #include <torch/torch.h>
 
@@ -38,6 +39,7 @@ Manifest generate_dataset(const Config& cfg, const std::string& dir) {
   for (const auto& [name, n] : splits) total += n;
   if (total == 0) input_error("config key data.generator", "asks for no scenes at all");
   make_dirs(dir);
+  std::filesystem::remove(dir + "/manifest.json");  // written last: its presence marks a complete dataset
 
   Manifest m;
   m.wavelengths_nm = cfg.optics.wavelengths_nm;
