@@ -24,6 +24,7 @@ const char* kUsage =
     "              --patch 256 --bands 25 --depths 7 --psf 63 --pupil 512 set the work\n"
     "  NAME: data  the data path: scene generation, loading with 1 and N threads,\n"
     "              the patch sampler and patch extraction (--scenes 8)\n"
+    "  NAME: train seconds per training step and peak memory (--patch 256 --batch 1)\n"
     "  --config defaults to configs/paper.json of the source tree.\n"
     "  --json prints exactly one JSON object on stdout.";
 
@@ -40,7 +41,8 @@ int run(const AppArgs& args) {
   if (name == "psf") rc = bench::bench_psf(cfg, args, out);
   else if (name == "sim") rc = bench::bench_sim(cfg, args, out);
   else if (name == "data") rc = bench::bench_data(cfg, args, out);
-  else input_error("hsd_bench " + name, "unknown benchmark (known: psf, sim, data)");
+  else if (name == "train") rc = bench::bench_train(cfg, args, out);
+  else input_error("hsd_bench " + name, "unknown benchmark (known: psf, sim, data, train)");
   out.json["hsd_version"] = HSD_VERSION;
   out.json["config"] = config;
   if (json) std::printf("%s\n", out.json.dump().c_str());
@@ -50,6 +52,6 @@ int run(const AppArgs& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  AppSpec spec{"hsd_bench", kUsage, {"--threads", "--repeats", "--patch", "--bands", "--depths", "--psf", "--pupil", "--scenes"}, {"--json", "--no-baseline"}, false, false};
+  AppSpec spec{"hsd_bench", kUsage, {"--threads", "--repeats", "--patch", "--bands", "--depths", "--psf", "--pupil", "--scenes", "--batch"}, {"--json", "--no-baseline"}, false, false};
   return run_app(spec, argc, argv, run);
 }

@@ -149,7 +149,8 @@ DataConfig parse_data(const JsonReader& d) {
     if (g.objects_max < g.objects_min || g.objects_max > 64) gr->fail("objects_max", "must be in [objects_min, 64]");
     g.colorchecker = gr->get_bool("colorchecker", g.colorchecker);
     g.colorchecker_depth_m = gr->get_number("colorchecker_depth_m", g.colorchecker_depth_m);
-    if (!(g.colorchecker_depth_m > 0.0)) gr->fail("colorchecker_depth_m", "must be > 0");
+    if (!(g.colorchecker_depth_m > 0.0 && g.colorchecker_depth_m < g.depth_max_m))
+      gr->fail("colorchecker_depth_m", "must be in (0, data.generator.depth_max_m)");
     g.half = gr->get_bool("half", g.half);
   }
   return c;
@@ -213,11 +214,46 @@ Config parse_config(const Json& resolved) {
       s->fail("compositing", "expected \"linear\" or \"occlusion\", got \"" + S.compositing + "\"");
     S.illuminant = s->get_string("illuminant", S.illuminant);
   }
+  if (auto m = r.optional_child("model")) {
+    auto& M = c.model;
+    M.base_width = m->get_int("base_width", M.base_width);
+    if (M.base_width < 1 || M.base_width > 512) m->fail("base_width", "must be in [1, 512]");
+    M.levels = m->get_int("levels", M.levels);
+    if (M.levels < 1 || M.levels > 7) m->fail("levels", "must be in [1, 7]");
+    M.norm = m->get_string("norm", M.norm);
+    if (M.norm != "batch" && M.norm != "group" && M.norm != "none")
+      m->fail("norm", "expected \"batch\", \"group\" or \"none\", got \"" + M.norm + "\"");
+  }
   if (auto t = r.optional_child("train")) {
-    c.train.steps = t->get_int("steps", c.train.steps);
-    if (c.train.steps < 0) t->fail("steps", "must be >= 0");
-    c.train.batch_size = t->get_int("batch_size", c.train.batch_size);
-    if (c.train.batch_size < 1) t->fail("batch_size", "must be >= 1");
+    auto& T = c.train;
+    T.steps = t->get_int("steps", T.steps);
+    if (T.steps < 0) t->fail("steps", "must be >= 0");
+    T.batch_size = t->get_int("batch_size", T.batch_size);
+    if (T.batch_size < 1 || T.batch_size > 4096) t->fail("batch_size", "must be in [1, 4096]");
+    T.lr_net = t->get_number("lr_net", T.lr_net);
+    if (!(T.lr_net >= 0.0 && T.lr_net < 1.0)) t->fail("lr_net", "must be in [0, 1)");
+    T.lr_doe_m = t->get_number("lr_doe_m", T.lr_doe_m);
+    if (!(T.lr_doe_m >= 0.0 && T.lr_doe_m < 1e-5)) t->fail("lr_doe_m", "must be in [0, 1e-5) metres");
+    T.warmup_steps = t->get_int("warmup_steps", T.warmup_steps);
+    if (T.warmup_steps < 0) t->fail("warmup_steps", "must be >= 0");
+    T.decay = t->get_string("decay", T.decay);
+    if (T.decay != "cosine" && T.decay != "none") t->fail("decay", "expected \"cosine\" or \"none\", got \"" + T.decay + "\"");
+    T.min_lr_ratio = t->get_number("min_lr_ratio", T.min_lr_ratio);
+    if (!(T.min_lr_ratio >= 0.0 && T.min_lr_ratio <= 1.0)) t->fail("min_lr_ratio", "must be in [0, 1]");
+    T.clip_grad_norm = t->get_number("clip_grad_norm", T.clip_grad_norm);
+    if (T.clip_grad_norm < 0.0) t->fail("clip_grad_norm", "must be >= 0 (0 = off)");
+    T.freeze_doe = t->get_bool("freeze_doe", T.freeze_doe);
+    T.loss_alpha = t->get_number("loss_alpha", T.loss_alpha);
+    T.loss_beta = t->get_number("loss_beta", T.loss_beta);
+    T.loss_gamma = t->get_number("loss_gamma", T.loss_gamma);
+    for (const char* k : {"loss_alpha", "loss_beta", "loss_gamma"})
+      if (t->get_number(k, 0.0) < 0.0) t->fail(k, "must be >= 0");
+    T.val_every = t->get_int("val_every", T.val_every);
+    T.val_patches = t->get_int("val_patches", T.val_patches);
+    T.checkpoint_every = t->get_int("checkpoint_every", T.checkpoint_every);
+    T.log_every = t->get_int("log_every", T.log_every);
+    for (const char* k : {"val_every", "val_patches", "checkpoint_every", "log_every"})
+      if (t->get_int(k, 1) < 1) t->fail(k, "must be >= 1");
   }
   if (auto d = r.optional_child("data")) c.data = parse_data(*d);
   r.check_all_used();

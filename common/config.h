@@ -66,9 +66,29 @@ struct SensorConfig {
   std::string illuminant = "D65";            // column of data/spectra/illuminants.csv, for reflectance scenes
 };
 
+// The reconstruction network (model/unet.h).
+struct ModelConfig {
+  int64_t base_width = 32;      // channels of the first U-Net level, doubled per level
+  int64_t levels = 4;           // poolings (inputs are padded to multiples of 2^levels)
+  std::string norm = "batch";   // "batch" | "group" | "none"
+};
+
+// Joint training of DOE and network (train/trainer.h).
 struct TrainConfig {
   int64_t steps = 1000;
   int64_t batch_size = 4;
+  double lr_net = 5e-4;             // Adam, network parameters
+  double lr_doe_m = 2e-9;           // Adam, DOE height (metres per step at full rate)
+  int64_t warmup_steps = 50;        // linear warm-up of both rates
+  std::string decay = "cosine";     // "cosine" (to min_lr_ratio at the last step) | "none"
+  double min_lr_ratio = 0.05;
+  double clip_grad_norm = 1.0;      // per parameter group; 0 = off
+  bool freeze_doe = false;          // fixed-DOE ablations
+  double loss_alpha = 1.0, loss_beta = 1e-2, loss_gamma = 1e-2;  // L1 cube, L1 inverse depth, TV of predicted inverse depth
+  int64_t val_every = 100;          // steps between validations (and the last step)
+  int64_t val_patches = 8;          // fixed validation patches from the val split
+  int64_t checkpoint_every = 100;   // steps between checkpoints (and the last step)
+  int64_t log_every = 10;           // steps between metrics.csv rows
 };
 
 // hsd_scenes: synthetic tabletop HS-D scenes (data/scene_generator.h).
@@ -105,6 +125,7 @@ struct Config {
   int64_t threads = 0;         // intra-op threads; 0 = all cores
   OpticsConfig optics;
   SensorConfig sensor;
+  ModelConfig model;
   TrainConfig train;
   DataConfig data;
   Json resolved;  // the fully resolved JSON (after extends and --set), written next to outputs

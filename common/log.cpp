@@ -50,8 +50,15 @@ void Progress::print(bool final_line) {
   std::string bar(filled, '#');
   bar += std::string(width - filled, '.');
   const bool tty = isatty(fileno(stderr));
-  std::fprintf(stderr, "%s%s [%s] %ld/%ld  %.1f s%s", tty ? "\r" : "", label_.c_str(), bar.c_str(),
-               done_, total_, secs, (final_line || !tty) ? "\n" : "");
+  std::string eta;
+  if (!final_line && done_ > start_done_ && done_ < total_) {
+    char buf[48];
+    std::snprintf(buf, sizeof buf, "  ETA %.0f s", secs / double(done_ - start_done_) * double(total_ - done_));
+    eta = buf;
+  }
+  std::fprintf(stderr, "%s%s [%s] %ld/%ld  %.1f s%s%s%s%s", tty ? "\r" : "", label_.c_str(), bar.c_str(), done_,
+               total_, secs, suffix_.empty() ? "" : "  ", suffix_.c_str(), eta.c_str(),
+               (final_line || !tty) ? "\n" : (tty ? "\033[K" : ""));
   std::fflush(stderr);
 }
 

@@ -19,13 +19,18 @@ class Progress {
  public:
   Progress(std::string label, long total);
   void step(long n = 1);
+  // Extra text after the counts (e.g. "loss 0.031  2.1 step/s"); an ETA is added
+  // once some work is done. Start offsets the count (a resumed run).
+  void set_suffix(std::string suffix) { suffix_ = std::move(suffix); }
+  void set_start(long done) { done_ = start_done_ = done; }
   void finish();
   ~Progress();
 
  private:
   void print(bool final_line);
   std::string label_;
-  long total_, done_ = 0;
+  long total_, done_ = 0, start_done_ = 0;
+  std::string suffix_;
   bool finished_ = false;
   std::chrono::steady_clock::time_point start_, last_;
 };

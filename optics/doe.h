@@ -53,6 +53,7 @@ class Doe {
   Doe(torch::Tensor initial_height_m, double max_height_m, int64_t quantization_levels, double pitch_m);
   // Raw parameter (requires grad); optimisers update this.
   torch::Tensor& parameter() { return raw_; }
+  const torch::Tensor& parameter() const { return raw_; }
   // Constrained height [N, N] in metres (differentiable in parameter()).
   torch::Tensor height() const;
   double max_height_m() const { return max_height_m_; }

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <sstream>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -183,7 +184,7 @@ TEST_CASE("hsd_simulate refuses bad scenes with exit 2 naming the file", "[app][
   CHECK_FALSE(fs::exists(fs::path(out) / "sensor.exr"));
 }
 
-TEST_CASE("hsd_bench data --json measures the data path", "[app][bench][data]") {
+TEST_CASE("hsd_bench data and train --json measure the data path and a training step", "[app][bench][data]") {
   const auto [out, code] = capture("cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) +
                                    "/hsd_bench data --json --config configs/tiny.json --scenes 2 --threads 2"
                                    " --set data.generator.width_px=64 --set data.generator.height_px=48"
@@ -197,6 +198,16 @@ TEST_CASE("hsd_bench data --json measures the data path", "[app][bench][data]") 
     CHECK(j.contains(k));
   CHECK(j["sampler_candidates"].get<int64_t>() > 0);
   CHECK(run("hsd_bench data --scenes 0").code == 2);
+  const auto [tout, tcode] = capture("cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) +
+                                     "/hsd_bench train --json --config configs/tiny.json --patch 16 --repeats 1 --threads 2"
+                                     " --set model.base_width=4 --set model.levels=2 2>/dev/null");
+  CHECK(tcode == 0);
+  INFO("stdout: " << tout);
+  REQUIRE(lines(tout) == 1);
+  const auto t = nlohmann::json::parse(tout);
+  CHECK(t["seconds_per_step"].get<double>() > 0.0);
+  CHECK(t.contains("peak_rss_mib"));
+  CHECK(run("hsd_bench train --batch 0").code == 2);
 }
 
 TEST_CASE("hsd_bench sim --json reports the contract's keys", "[app][bench]") {
@@ -304,4 +315,71 @@ TEST_CASE("hsd_import turns the real Middlebury Aloe picture into a valid scene"
   bad = run("hsd_import --config configs/tiny.json --rgb " + real + "aloeL.jpg --disparity " + real + "aloeGT.png --scale 2 --out " + out.string());
   CHECK(bad.code == 2);
   CHECK_THAT(bad.err, Catch::Contains("--scale"));
+}
+
+namespace {
+// Columns of metrics.csv: step -> (train_loss, val_loss).
+std::map<std::string, std::pair<std::string, std::string>> loss_curve(const fs::path& csv) {
+  std::map<std::string, std::pair<std::string, std::string>> out;
+  std::ifstream f(csv);
+  std::string line;
+  std::getline(f, line);
+  while (std::getline(f, line)) {
+    std::vector<std::string> c;
+    std::stringstream ss(line);
+    std::string cell;
+    while (std::getline(ss, cell, ',')) c.push_back(cell);
+    c.resize(4);
+    out[c[0]] = {c[2], c[3]};
+  }
+  return out;
+}
+}  // namespace
+
+TEST_CASE("hsd_train writes the contract's outputs and resumes exactly after SIGKILL", "[app][train]") {
+  const fs::path base = fs::temp_directory_path() / "hsd_test_train_app";
+  fs::remove_all(base);
+  const std::string cfg =
+      "hsd_train --config configs/tiny.json --set data.root=" + (base / "data").string() +
+      " --set model.base_width=4 --set model.levels=2 --set train.batch_size=2 --set train.steps=24"
+      " --set train.warmup_steps=0 --set train.decay=none --set train.val_patches=2 --set train.val_every=8"
+      " --set train.log_every=1 --set train.checkpoint_every=2 --set data.patch_size_px=16"
+      " --set data.generator.train_scenes=2 --set data.generator.val_scenes=1 --set data.generator.test_scenes=0"
+      " --set data.generator.colorchecker=false --set data.generator.width_px=40 --set data.generator.height_px=32";
+  const Run a = run(cfg + " --out " + (base / "a").string());
+  INFO(a.err);
+  REQUIRE(a.code == 0);
+  for (const char* f : {"metrics.csv", "curves.png", "val_psnr.png", "config.json", "checkpoints/last.pt",
+                        "val/step_000008_reconstructions.png", "val/step_000024_psf_atlas.png"})
+    CHECK(fs::exists(base / "a" / f));
+  std::ifstream hdr(base / "a" / "metrics.csv");
+  std::string header;
+  std::getline(hdr, header);
+  for (const char* k : {"step", "wall_s", "train_loss", "val_loss"}) CHECK_THAT(header, Catch::Contains(k));
+  const auto curve_a = loss_curve(base / "a" / "metrics.csv");
+  CHECK(curve_a.size() == 25);  // step 0 (validation only) and 1..24
+  // Kill -9 as soon as a checkpoint exists, then resume: the same curve.
+  const std::string b = (base / "b").string();
+  const std::string kill = "cd " + std::string(HSD_SOURCE_DIR) + " && (" + std::string(HSD_BIN_DIR) + "/" + cfg +
+                           " --out " + b + " > /dev/null 2>&1 & pid=$!; while [ ! -f " + b +
+                           "/checkpoints/last.pt ]; do sleep 0.02; done; kill -9 $pid; wait $pid; exit 0)";
+  REQUIRE(std::system(kill.c_str()) == 0);
+  const Run r = run(cfg + " --out " + b + " --resume");
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  const auto curve_b = loss_curve(base / "b" / "metrics.csv");
+  CHECK(curve_b == curve_a);
+  // The checkpoint is a torch pickle that also serves as a height-map file.
+  const std::string py = "/usr/bin/python3 -c \"import torch; d = torch.load('" + (base / "a/checkpoints/last.pt").string() +
+                         "'); assert int(d['step']) == 24; assert d['height_map_m'].dim() == 2; "
+                         "assert d['doe_pitch_m'].dtype == torch.float64; print('ok')\" 2>&1";
+  CHECK(capture(py).first.find("ok") != std::string::npos);
+  // --resume without a checkpoint, and a bad key: exit 2 with one line.
+  Run bad = run(cfg + " --out " + (base / "none").string() + " --resume");
+  CHECK(bad.code == 2);
+  CHECK_THAT(bad.err, Catch::Contains("last.pt"));
+  bad = run(cfg + " --set train.lr_net=-1 --out " + (base / "c").string());
+  CHECK(bad.code == 2);
+  CHECK_THAT(bad.err, Catch::Contains("train.lr_net"));
+  CHECK(lines(bad.err) == 1);
 }

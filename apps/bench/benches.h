@@ -15,5 +15,6 @@ struct BenchOutput {
 int bench_psf(const Config& cfg, const AppArgs& args, BenchOutput& out);
 int bench_sim(Config cfg, const AppArgs& args, BenchOutput& out);
 int bench_data(Config cfg, const AppArgs& args, BenchOutput& out);
+int bench_train(Config cfg, const AppArgs& args, BenchOutput& out);
 
 }  // namespace hsd::bench

@@ -1,0 +1,89 @@
+#include "model/unet.h"
+
+#include "model/spectral_upsampling.h"
+
+namespace hsd::model {
+
+namespace F = torch::nn::functional;
+
+torch::nn::Sequential HsdNetImpl::block(int64_t in, int64_t out) {
+  torch::nn::Sequential s;
+  for (int k = 0; k < 2; ++k) {
+    s->push_back(torch::nn::Conv2d(torch::nn::Conv2dOptions(k == 0 ? in : out, out, 3).padding(1).bias(opt_.norm == "none")));
+    if (opt_.norm == "batch") s->push_back(torch::nn::BatchNorm2d(out));
+    else if (opt_.norm == "group") s->push_back(torch::nn::GroupNorm(std::min<int64_t>(8, out), out));
+    s->push_back(torch::nn::ReLU(true));
+  }
+  return s;
+}
+
+HsdNetImpl::HsdNetImpl(const NetOptions& options, const torch::Tensor& upsampling_weights) : opt_(options) {
+  TORCH_CHECK(opt_.levels >= 1 && opt_.levels <= 8, "levels must be in [1, 8]");
+  TORCH_CHECK(upsampling_weights.dim() == 2 && upsampling_weights.size(0) == opt_.bands &&
+                  upsampling_weights.size(1) == opt_.in_channels,
+              "upsampling weights must be [bands, in_channels]");
+  std::vector<int64_t> width;
+  for (int64_t l = 0; l <= opt_.levels; ++l) width.push_back(opt_.base_width << l);
+  for (int64_t l = 0; l < opt_.levels; ++l)
+    down_.push_back(register_module("down" + std::to_string(l), block(l == 0 ? opt_.in_channels : width[size_t(l - 1)], width[size_t(l)])));
+  bottom_ = register_module("bottom", block(width[size_t(opt_.levels - 1)], width[size_t(opt_.levels)]));
+  for (int64_t l = opt_.levels - 1; l >= 0; --l) {
+    const std::string s = std::to_string(l);
+    const int64_t w = width[size_t(l)], below = width[size_t(l + 1)];
+    up_hs_.push_back(register_module("up_hs" + s, torch::nn::Conv2d(torch::nn::Conv2dOptions(below, w, 3).padding(1))));
+    dec_hs_.push_back(register_module("dec_hs" + s, block(2 * w, w)));
+    up_depth_.push_back(register_module("up_depth" + s, torch::nn::Conv2d(torch::nn::Conv2dOptions(below, w, 3).padding(1))));
+    dec_depth_.push_back(register_module("dec_depth" + s, block(2 * w, w)));
+  }
+  head_hs_ = register_module("head_hs", torch::nn::Conv2d(torch::nn::Conv2dOptions(width[0], opt_.bands, 1)));
+  head_depth_ = register_module("head_depth", torch::nn::Conv2d(torch::nn::Conv2dOptions(width[0], 1, 1)));
+  weights_ = register_buffer("upsampling_weights", upsampling_weights.to(torch::kFloat32).clone());
+}
+
+NetOutput HsdNetImpl::forward(const torch::Tensor& image) {
+  TORCH_CHECK(image.dim() == 4 && image.size(1) == opt_.in_channels, "network input must be [B, ", opt_.in_channels,
+              ", H, W], got ", image.sizes());
+  const int64_t H = image.size(2), W = image.size(3), m = int64_t(1) << opt_.levels;
+  const int64_t ph = (m - H % m) % m, pw = (m - W % m) % m;
+  torch::Tensor x = image;
+  if (ph || pw) {  // reflect needs pad < size; replicate always works
+    F::PadFuncOptions o({0, pw, 0, ph});
+    if (ph < H && pw < W) o.mode(torch::kReflect);
+    else o.mode(torch::kReplicate);
+    x = F::pad(x, o);
+  }
+  std::vector<torch::Tensor> skips;
+  for (auto& d : down_) {
+    x = d->forward(x);
+    skips.push_back(x);
+    x = F::max_pool2d(x, F::MaxPool2dFuncOptions(2));
+  }
+  const torch::Tensor bottom = bottom_->forward(x);
+  auto decode = [&](std::vector<torch::nn::Conv2d>& up, std::vector<torch::nn::Sequential>& dec) {
+    torch::Tensor y = bottom;
+    for (size_t k = 0; k < up.size(); ++k) {
+      const torch::Tensor& skip = skips[skips.size() - 1 - k];
+      y = F::interpolate(y, F::InterpolateFuncOptions()
+                                .size(std::vector<int64_t>{skip.size(2), skip.size(3)})
+                                .mode(torch::kBilinear)
+                                .align_corners(false));
+      y = torch::relu(up[k]->forward(y));
+      y = dec[k]->forward(torch::cat({y, skip}, 1));
+    }
+    return y;
+  };
+  torch::Tensor hs = head_hs_->forward(decode(up_hs_, dec_hs_));
+  torch::Tensor d = torch::sigmoid(head_depth_->forward(decode(up_depth_, dec_depth_)));
+  if (ph || pw) {
+    hs = hs.narrow(2, 0, H).narrow(3, 0, W);
+    d = d.narrow(2, 0, H).narrow(3, 0, W);
+  }
+  NetOutput out;
+  out.hs = hs + spectral_upsample(weights_, image);
+  const double inv_far = 1.0 / opt_.depth_max_m, inv_near = 1.0 / opt_.depth_min_m;
+  out.inv_depth = inv_far + d * (inv_near - inv_far);
+  out.depth_m = 1.0 / out.inv_depth;
+  return out;
+}
+
+}  // namespace hsd::model

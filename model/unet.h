@@ -1,0 +1,53 @@
+// The reconstruction network (Baek et al. 2021, "Network Architecture"): a
+// U-Net encoder with two decoders sharing its skip connections, one for the
+// hyperspectral cube (L channels, added to the residual spectral upsampling of
+// the input, spectral_upsampling.h) and one for depth (a sigmoid output read as
+// normalised inverse depth, mapped back to metres over the configured range).
+// Inputs whose sides are not multiples of 2^levels are reflect-padded and the
+// outputs cropped back. Every block is conv 3×3 -> norm -> ReLU, twice; down
+// by 2×2 max pooling, up by bilinear ×2 then conv. Built only from ops that
+// TorchScript also has, so the exporter can re-express it.
+#pragma once
+#include <string>
+#include <vector>
+
+#include <torch/torch.h>
+
+namespace hsd::model {
+
+struct NetOptions {
+  int64_t in_channels = 3;
+  int64_t bands = 25;              // L
+  int64_t base_width = 32;         // channels of the first level; doubled per level
+  int64_t levels = 4;              // poolings
+  std::string norm = "batch";      // "batch" | "group" | "none"
+  double depth_min_m = 0.4, depth_max_m = 2.0;
+};
+
+struct NetOutput {
+  torch::Tensor hs;          // [B, L, H, W] radiance per band
+  torch::Tensor inv_depth;   // [B, 1, H, W] 1/m
+  torch::Tensor depth_m;     // [B, 1, H, W] metres
+};
+
+class HsdNetImpl : public torch::nn::Module {
+ public:
+  // upsampling_weights [L, C] (spectral_upsampling_weights of the camera's Ω).
+  HsdNetImpl(const NetOptions& options, const torch::Tensor& upsampling_weights);
+  // image [B, 3, H, W] (linear sensor RGB) -> cube and depth.
+  NetOutput forward(const torch::Tensor& image);
+  const NetOptions& options() const { return opt_; }
+
+ private:
+  torch::nn::Sequential block(int64_t in, int64_t out);
+  NetOptions opt_;
+  std::vector<torch::nn::Sequential> down_;
+  torch::nn::Sequential bottom_{nullptr};
+  std::vector<torch::nn::Conv2d> up_hs_, up_depth_;
+  std::vector<torch::nn::Sequential> dec_hs_, dec_depth_;
+  torch::nn::Conv2d head_hs_{nullptr}, head_depth_{nullptr};
+  torch::Tensor weights_;  // buffer [L, C]
+};
+TORCH_MODULE(HsdNet);
+
+}  // namespace hsd::model

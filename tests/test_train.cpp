@@ -1,0 +1,141 @@
+// Training: the spectral-upsampling weights against the formula, one step
+// lowering the loss on a fixed batch, the gradient reaching the height map, a
+// frozen DOE staying bit-identical, checkpoint -> resume equal to an
+// uninterrupted run, the schedule, and the loss terms.
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <filesystem>
+
+#include "common/error.h"
+#include "helpers.h"
+#include "model/spectral_upsampling.h"
+#include "model/unet.h"
+#include "train/loss.h"
+#include "train/schedule.h"
+#include "train/trainer.h"
+
+using namespace hsd;
+namespace fs = std::filesystem;
+
+namespace {
+// tiny.json plus a tiny network, dataset and batch.
+Config tiny_training(const std::string& root, std::vector<std::string> extra = {}) {
+  std::vector<std::string> o{"data.root=\"" + root + "\"",
+                             "model.base_width=4",
+                             "model.levels=2",
+                             "train.batch_size=2",
+                             "train.warmup_steps=0",
+                             "train.decay=none",
+                             "train.val_patches=2",
+                             "data.patch_size_px=16",
+                             "data.generator.train_scenes=2",
+                             "data.generator.val_scenes=1",
+                             "data.generator.test_scenes=0",
+                             "data.generator.colorchecker=false",
+                             "data.generator.width_px=40",
+                             "data.generator.height_px=32"};
+  for (auto& e : extra) o.push_back(e);
+  return load_config(test::source_path("configs/tiny.json"), o);
+}
+train::Batch fixed_batch(int64_t L) {
+  torch::manual_seed(3);
+  train::Batch b;
+  b.radiance = torch::rand({2, L, 16, 16});
+  b.depth_m = 0.5 + torch::rand({2, 1, 16, 16});
+  b.depth_m.narrow(3, 8, 8).fill_(1.5);
+  return b;
+}
+}  // namespace
+
+TEST_CASE("train: spectral upsampling weights follow the formula", "[train]") {
+  // Ω [C = 3, L = 3]; band 2 is seen by no channel.
+  const torch::Tensor omega = torch::tensor({1.0, 2.0, 0.0, 3.0, 0.0, 0.0, 0.0, 1.0, 0.0}, torch::kFloat64).view({3, 3});
+  const torch::Tensor w = model::spectral_upsampling_weights(omega);  // [L, C]
+  REQUIRE(w.sizes() == torch::IntArrayRef({3, 3}));
+  // w(λ, c) = Ω(λ, c) / (Σ_c' Ω(λ, c') · Σ_λ' Ω(λ', c)); Σ_c per band: 4, 3, 0; Σ_λ per channel: 3, 3, 1.
+  CHECK(w[0][0].item<double>() == Approx(1.0 / (4 * 3)));
+  CHECK(w[0][1].item<double>() == Approx(3.0 / (4 * 3)));
+  CHECK(w[1][0].item<double>() == Approx(2.0 / (3 * 3)));
+  CHECK(w[1][2].item<double>() == Approx(1.0 / (3 * 1)));
+  CHECK(w[0][2].item<double>() == 0.0);
+  CHECK((w[2] == 0).all().item<bool>());  // unseen band: guarded, 0
+  const torch::Tensor J = torch::rand({2, 3, 4, 5}, torch::kFloat64);
+  const torch::Tensor up = model::spectral_upsample(w, J);
+  CHECK((up[1][0] - (w[0][0] * J[1][0] + w[0][1] * J[1][1] + w[0][2] * J[1][2])).abs().max().item<double>() < 1e-12);
+}
+
+TEST_CASE("train: the loss terms and the schedule", "[train]") {
+  const torch::Tensor I = torch::zeros({1, 2, 4, 4}), D = torch::ones({1, 1, 4, 4});
+  torch::Tensor Dp = torch::ones({1, 1, 4, 4});
+  Dp.narrow(3, 2, 2).fill_(3.0);  // one vertical edge of height 2
+  const auto t = train::reconstruction_loss(I + 0.5, I, Dp, D, {1.0, 0.1, 0.01});
+  CHECK(t.hs.item<double>() == Approx(0.5));
+  CHECK(t.depth.item<double>() == Approx(1.0));                    // half the pixels off by 2
+  CHECK(t.tv.item<double>() == Approx(2.0 * 4 / 12));              // 4 of 12 horizontal pairs jump by 2
+  CHECK(t.total.item<double>() == Approx(0.5 + 0.1 + 0.01 * 2.0 / 3.0));
+  CHECK(train::lr_factor(0, 100, 10, "cosine", 0.1) == Approx(0.1));
+  CHECK(train::lr_factor(9, 100, 10, "cosine", 0.1) == Approx(1.0));
+  CHECK(train::lr_factor(99, 100, 10, "cosine", 0.1) == Approx(0.1));
+  CHECK(train::lr_factor(50, 100, 0, "none", 0.1) == 1.0);
+}
+
+TEST_CASE("train: a network handles sizes that are not multiples of its poolings", "[train]") {
+  model::NetOptions o;
+  o.bands = 5, o.base_width = 4, o.levels = 3;
+  model::HsdNet net(o, torch::rand({5, 3}));
+  const auto out = net->forward(torch::rand({1, 3, 21, 13}));
+  CHECK(out.hs.sizes() == torch::IntArrayRef({1, 5, 21, 13}));
+  CHECK(out.depth_m.sizes() == torch::IntArrayRef({1, 1, 21, 13}));
+  CHECK(out.depth_m.min().item<double>() >= o.depth_min_m - 1e-6);
+  CHECK(out.depth_m.max().item<double>() <= o.depth_max_m + 1e-6);
+}
+
+TEST_CASE("train: a step lowers the loss and moves the height map; a frozen DOE stays put", "[train]") {
+  const std::string root = (fs::temp_directory_path() / "hsd_test_train_step").string();
+  {
+    train::Trainer t(tiny_training(root, {"train.lr_net=0.003"}));
+    const train::Batch b = fixed_batch(3);
+    const torch::Tensor h0 = t.height().clone();
+    const double before = t.step(b, 0).loss;
+    REQUIRE(t.doe().parameter().grad().defined());
+    CHECK(t.doe().parameter().grad().abs().max().item<double>() > 0.0);  // the gradient reaches the height map
+    CHECK_FALSE(t.height().equal(h0));
+    double after = before;
+    for (int k = 1; k <= 5; ++k) after = t.step(b, k).loss;  // loss before each update
+    CHECK(after < before);
+  }
+  {
+    train::Trainer t(tiny_training(root, {"train.freeze_doe=true"}));
+    const train::Batch b = fixed_batch(3);
+    const torch::Tensor h0 = t.height().clone();
+    for (int k = 0; k < 3; ++k) t.step(b, k);
+    CHECK(t.height().equal(h0));  // bit-identical
+  }
+}
+
+TEST_CASE("train: checkpoint then resume equals an uninterrupted run", "[train]") {
+  const fs::path dir = fs::temp_directory_path() / "hsd_test_train_resume";
+  fs::remove_all(dir);
+  const Config cfg = tiny_training((dir / "data").string(), {"train.steps=4"});
+  train::Trainer a(cfg);
+  a.attach_data();
+  for (int64_t k = 0; k < 4; ++k) a.step(a.train_batch(k), k);
+  train::Trainer b(cfg);
+  b.attach_data();
+  for (int64_t k = 0; k < 2; ++k) b.step(b.train_batch(k), k);
+  b.save_checkpoint((dir / "ck.pt").string(), 2);
+  train::Trainer c(cfg);  // a fresh process, as after a kill
+  c.attach_data();
+  const int64_t next = c.load_checkpoint((dir / "ck.pt").string());
+  REQUIRE(next == 2);
+  for (int64_t k = next; k < 4; ++k) c.step(c.train_batch(k), k);
+  CHECK(c.height().equal(a.height()));
+  auto pa = a.net()->named_parameters(), pc = c.net()->named_parameters();
+  for (const auto& p : pa) {
+    INFO(p.key());
+    CHECK(p.value().equal(pc[p.key()]));
+  }
+  // A checkpoint of another config is refused naming the file.
+  train::Trainer other(tiny_training((dir / "data").string(), {"model.base_width=6"}));
+  CHECK_THROWS_WITH(other.load_checkpoint((dir / "ck.pt").string()), Catch::Contains("ck.pt"));
+}

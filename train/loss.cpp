@@ -1,0 +1,37 @@
+#include "train/loss.h"
+
+#include <torch/torch.h>
+
+namespace hsd::train {
+
+namespace {
+// Mean of x [B, C, H, W] over the pixels where m [B, 1, H, W] is 1 (guarded).
+torch::Tensor masked_mean(const torch::Tensor& x, const torch::Tensor& m) {
+  if (!m.defined()) return x.mean();
+  const torch::Tensor mm = m.expand_as(x);
+  return (x * mm).sum() / mm.sum().clamp_min(1.0);
+}
+}  // namespace
+
+LossTerms reconstruction_loss(const torch::Tensor& hs_pred, const torch::Tensor& hs_true, const torch::Tensor& inv_pred,
+                              const torch::Tensor& inv_true, const LossWeights& w, const torch::Tensor& mask) {
+  LossTerms t;
+  t.hs = masked_mean((hs_pred - hs_true).abs(), mask);
+  t.depth = masked_mean((inv_pred - inv_true).abs(), mask);
+  // Forward differences along x and y (anisotropic TV), over pairs of valid pixels.
+  const int64_t H = inv_pred.size(2), W = inv_pred.size(3);
+  torch::Tensor tv = torch::zeros({}, inv_pred.options());
+  if (W > 1) {
+    const torch::Tensor dx = (inv_pred.narrow(3, 1, W - 1) - inv_pred.narrow(3, 0, W - 1)).abs();
+    tv = tv + masked_mean(dx, mask.defined() ? mask.narrow(3, 1, W - 1) * mask.narrow(3, 0, W - 1) : mask);
+  }
+  if (H > 1) {
+    const torch::Tensor dy = (inv_pred.narrow(2, 1, H - 1) - inv_pred.narrow(2, 0, H - 1)).abs();
+    tv = tv + masked_mean(dy, mask.defined() ? mask.narrow(2, 1, H - 1) * mask.narrow(2, 0, H - 1) : mask);
+  }
+  t.tv = tv;
+  t.total = w.alpha * t.hs + w.beta * t.depth + w.gamma * t.tv;
+  return t;
+}
+
+}  // namespace hsd::train

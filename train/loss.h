@@ -1,0 +1,23 @@
+// The training loss (Baek et al. 2021, "Loss"):
+//   L = α·mean|Î − I| + β·mean|D̂ − D| + γ·mean|∇D̂|,   D = 1/Z (inverse depth, 1/m)
+// The total-variation term acts on the prediction (the paper writes ∇D; the
+// gradient of the ground truth is a constant). Means run over valid pixels
+// (mask) when a mask is given.
+#pragma once
+#include <torch/types.h>
+
+namespace hsd::train {
+
+struct LossWeights {
+  double alpha = 1.0, beta = 1e-2, gamma = 1e-2;
+};
+
+struct LossTerms {
+  torch::Tensor total, hs, depth, tv;  // scalars; total carries the gradient
+};
+
+// hs_pred, hs_true [B, L, H, W]; inv_pred, inv_true [B, 1, H, W] (1/m); mask [B, 1, H, W] or undefined.
+LossTerms reconstruction_loss(const torch::Tensor& hs_pred, const torch::Tensor& hs_true, const torch::Tensor& inv_pred,
+                              const torch::Tensor& inv_true, const LossWeights& w, const torch::Tensor& mask = {});
+
+}  // namespace hsd::train

@@ -1,0 +1,66 @@
+#include "train/plot.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "common/atomic_file.h"
+#include "common/error.h"
+
+namespace hsd::train {
+
+void write_line_plot(const std::string& path, const std::string& title, const std::string& x_label,
+                     const std::vector<Series>& series, bool log_y) {
+  const int W = 640, H = 400, left = 70, right = 150, top = 30, bottom = 45;
+  cv::Mat img(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
+  double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
+  auto tr = [&](double y) { return log_y ? std::log10(y) : y; };
+  for (const auto& s : series)
+    for (size_t i = 0; i < s.x.size() && i < s.y.size(); ++i) {
+      if (!std::isfinite(s.y[i]) || (log_y && s.y[i] <= 0)) continue;
+      x0 = std::min(x0, s.x[i]), x1 = std::max(x1, s.x[i]);
+      y0 = std::min(y0, tr(s.y[i])), y1 = std::max(y1, tr(s.y[i]));
+    }
+  if (x0 > x1) x0 = 0, x1 = 1, y0 = 0, y1 = 1;
+  if (x1 - x0 < 1e-12) x1 = x0 + 1;
+  if (y1 - y0 < 1e-12) y0 -= 0.5, y1 += 0.5;
+  const double pad = 0.05 * (y1 - y0);
+  y0 -= pad, y1 += pad;
+  auto px = [&](double x) { return left + int((x - x0) / (x1 - x0) * (W - left - right)); };
+  auto py = [&](double y) { return H - bottom - int((y - y0) / (y1 - y0) * (H - top - bottom)); };
+  cv::rectangle(img, cv::Point(left, top), cv::Point(W - right, H - bottom), cv::Scalar(0, 0, 0), 1);
+  char buf[64];
+  for (int k = 0; k <= 4; ++k) {  // y ticks
+    const double v = y0 + (y1 - y0) * k / 4.0;
+    std::snprintf(buf, sizeof buf, "%.3g", log_y ? std::pow(10.0, v) : v);
+    cv::putText(img, buf, cv::Point(4, py(v) + 4), cv::FONT_HERSHEY_SIMPLEX, 0.38, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+    cv::line(img, cv::Point(left, py(v)), cv::Point(W - right, py(v)), cv::Scalar(225, 225, 225), 1);
+    const double xv = x0 + (x1 - x0) * k / 4.0;
+    std::snprintf(buf, sizeof buf, "%.4g", xv);
+    cv::putText(img, buf, cv::Point(px(xv) - 12, H - bottom + 16), cv::FONT_HERSHEY_SIMPLEX, 0.38, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  }
+  cv::putText(img, title, cv::Point(left, 20), cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  cv::putText(img, x_label, cv::Point((W - right + left) / 2 - 20, H - 8), cv::FONT_HERSHEY_SIMPLEX, 0.42, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  int legend_y = top + 14;
+  for (const auto& s : series) {
+    const cv::Scalar c(s.bgr[0], s.bgr[1], s.bgr[2]);
+    std::vector<cv::Point> pts;
+    for (size_t i = 0; i < s.x.size() && i < s.y.size(); ++i)
+      if (std::isfinite(s.y[i]) && (!log_y || s.y[i] > 0)) pts.emplace_back(px(s.x[i]), py(tr(s.y[i])));
+    if (pts.size() == 1) cv::circle(img, pts[0], 3, c, -1);
+    if (pts.size() > 1) cv::polylines(img, pts, false, c, 2, cv::LINE_AA);
+    for (const auto& p : pts)
+      if (pts.size() < 40) cv::circle(img, p, 2, c, -1);
+    cv::line(img, cv::Point(W - right + 10, legend_y - 4), cv::Point(W - right + 30, legend_y - 4), c, 2);
+    cv::putText(img, s.name, cv::Point(W - right + 35, legend_y), cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+    legend_y += 18;
+  }
+  std::vector<uchar> out;
+  if (!cv::imencode(".png", img, out)) input_error(path, "PNG encoding failed");
+  write_binary_file(path, std::vector<char>(out.begin(), out.end()));
+}
+
+}  // namespace hsd::train

@@ -1,0 +1,95 @@
+// Joint training of the DOE height map and the reconstruction network
+// (Baek et al. 2021): one step is
+//   patches (radiance I [B, L, S, S], depth Z [B, 1, S, S])
+//   -> PSFs of the DOE height h for the occupied layers -> sensor image J + noise
+//   -> network -> (Î, D̂) -> loss(Î, I, D̂, 1/Z) -> Adam step into h and θ.
+// Adam with one parameter group per part (network, DOE; the DOE is left out
+// when frozen), warm-up and cosine decay (schedule.h), gradient clipping per
+// group, and a NaN/Inf guard that stops with the step and tensor named.
+// Every random choice of step k (patches, lighting, noise) is a function of
+// (seed, k), so a run resumed from a checkpoint repeats the uninterrupted run
+// exactly (same thread count).
+#pragma once
+#include <future>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <torch/torch.h>
+
+#include "common/config.h"
+#include "data/dataset.h"
+#include "data/illuminant_augment.h"
+#include "data/patch_sampler.h"
+#include "model/unet.h"
+#include "optics/doe.h"
+#include "optics/material.h"
+#include "optics/psf.h"
+#include "optics/sensor.h"
+#include "train/loss.h"
+
+namespace hsd::train {
+
+struct Batch {
+  torch::Tensor radiance;  // [B, L, S, S]
+  torch::Tensor depth_m;   // [B, 1, S, S]
+};
+
+struct StepStats {
+  double loss = 0, hs = 0, depth = 0, tv = 0, lr_net = 0, lr_doe = 0;
+};
+
+struct ValStats {
+  double loss = 0, hs_psnr_db = 0, depth_rmse_m = 0, depth_mae_m = 0, peak = 0;
+};
+
+class Trainer {
+ public:
+  // Optics, DOE, network and optimiser from the config (no data yet).
+  explicit Trainer(const Config& cfg);
+
+  // Loads (generating it first if allowed) the dataset: train patches, and
+  // train.val_patches fixed validation patches from the val split.
+  void attach_data();
+  // The training batch of step k: a function of (seed, k) only.
+  Batch train_batch(int64_t step) const;
+  // One optimisation step with index `step` (0-based; sets the rates, seeds the noise).
+  StepStats step(const Batch& batch, int64_t step);
+  // Loss and metrics on the fixed validation patches (network in eval mode, fixed noise).
+  ValStats validate();
+
+  // Checkpoint: a torch pickle dict (network, DOE, Adam state, next step; also
+  // height_map_m and doe_pitch_m so it serves as a height-map file). Atomic.
+  void save_checkpoint(const std::string& path, int64_t next_step) const;
+  // Returns the next step; InputError naming the file for a mismatch.
+  int64_t load_checkpoint(const std::string& path);
+
+  // The whole run with its outputs in out_dir (CONTRACT.md: metrics.csv,
+  // checkpoints/last.pt, config.json; plus curves.png, val/ pictures).
+  void run(const std::string& out_dir, bool resume);
+
+  torch::Tensor height() const { return doe_.height().detach(); }
+  model::HsdNet& net() { return net_; }
+  optics::Doe& doe() { return doe_; }
+  const optics::PsfSimulator& psf() const { return *psf_; }
+  const Batch& val_batch() const { return val_; }
+
+ private:
+  void write_val_pictures(const std::string& dir, int64_t step);
+  Config cfg_;
+  torch::Device device_;
+  optics::Material material_;
+  std::unique_ptr<optics::PsfSimulator> psf_;
+  optics::SensorModel sensor_;
+  optics::Doe doe_;
+  model::HsdNet net_{nullptr};
+  std::unique_ptr<torch::optim::Adam> opt_;
+  LossWeights weights_;
+  // data
+  std::vector<data::LoadedScene> train_scenes_, val_scenes_;
+  std::unique_ptr<data::PatchSampler> sampler_;
+  std::unique_ptr<data::IlluminantBank> bank_;
+  Batch val_;
+};
+
+}  // namespace hsd::train
