@@ -214,6 +214,34 @@ Config parse_config(const Json& resolved) {
       s->fail("compositing", "expected \"linear\" or \"occlusion\", got \"" + S.compositing + "\"");
     S.illuminant = s->get_string("illuminant", S.illuminant);
   }
+  if (auto f = r.optional_child("fisher")) {
+    auto& F = c.fisher;
+    F.photons = f->get_number("photons", F.photons);
+    if (!(F.photons > 0.0)) f->fail("photons", "must be > 0");
+    F.background = f->get_number("background", F.background);
+    if (!(F.background >= 0.0)) f->fail("background", "must be >= 0");
+    F.window_px = f->get_int("window_px", F.window_px);
+    if (F.window_px < 3 || F.window_px > 255 || F.window_px % 2 == 0) f->fail("window_px", "must be odd, in [3, 255]");
+    F.pixel_nodes = f->get_int("pixel_nodes", F.pixel_nodes);
+    if (F.pixel_nodes < 1 || F.pixel_nodes > 8) f->fail("pixel_nodes", "must be in [1, 8]");
+    F.design_samples = f->get_int("design_samples", F.design_samples);
+    if (F.design_samples != 0 && (F.design_samples < 16 || F.design_samples > 4096))
+      f->fail("design_samples", "must be 0 (the DOE grid) or in [16, 4096]");
+    F.wavelength_stride = f->get_int("wavelength_stride", F.wavelength_stride);
+    F.depth_stride = f->get_int("depth_stride", F.depth_stride);
+    if (F.wavelength_stride < 1) f->fail("wavelength_stride", "must be >= 1");
+    if (F.depth_stride < 1) f->fail("depth_stride", "must be >= 1");
+    F.basis = f->get_string("basis", F.basis);
+    if (F.basis != "zernike" && F.basis != "freeform") f->fail("basis", "expected \"zernike\" or \"freeform\", got \"" + F.basis + "\"");
+    F.zernike_modes = f->get_int("zernike_modes", F.zernike_modes);
+    if (F.zernike_modes < 1 || F.zernike_modes > 200) f->fail("zernike_modes", "must be in [1, 200]");
+    F.start = f->get_string("start", F.start);
+    if (F.start != "fresnel" && F.start != "flat") f->fail("start", "expected \"fresnel\" or \"flat\", got \"" + F.start + "\"");
+    F.steps = f->get_int("steps", F.steps);
+    if (F.steps < 0 || F.steps > 100000) f->fail("steps", "must be in [0, 100000]");
+    F.lr = f->get_number("lr", F.lr);
+    if (!(F.lr > 0.0 && F.lr < 10.0)) f->fail("lr", "must be in (0, 10) micrometres");
+  }
   if (auto m = r.optional_child("model")) {
     auto& M = c.model;
     M.base_width = m->get_int("base_width", M.base_width);

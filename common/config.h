@@ -66,6 +66,22 @@ struct SensorConfig {
   std::string illuminant = "D65";            // column of data/spectra/illuminants.csv, for reflectance scenes
 };
 
+// Fisher-information / CRLB DOE design (optics/fisher.h, hsd_fisher).
+struct FisherConfig {
+  double photons = 1e4;               // signal photons per point-source image
+  double background = 10.0;           // background photons per pixel
+  int64_t window_px = 31;             // PSF window of the Fisher computation (odd)
+  int64_t pixel_nodes = 2;            // Gauss–Legendre nodes per pixel axis
+  int64_t design_samples = 256;       // DOE samples across the grid during the design (0 = optics.doe_samples)
+  int64_t wavelength_stride = 6;      // use every k-th configured band (and the last)
+  int64_t depth_stride = 1;           // every k-th configured depth (and the last)
+  std::string basis = "zernike";      // "zernike" | "freeform"
+  int64_t zernike_modes = 36;         // Noll modes 2..(modes+1)
+  std::string start = "fresnel";      // "fresnel" (unwrapped lens) | "flat"
+  int64_t steps = 100;
+  double lr = 0.02;                   // Adam: micrometres of Zernike coefficient (zernike) or of height (freeform)
+};
+
 // The reconstruction network (model/unet.h).
 struct ModelConfig {
   int64_t base_width = 32;      // channels of the first U-Net level, doubled per level
@@ -125,6 +141,7 @@ struct Config {
   int64_t threads = 0;         // intra-op threads; 0 = all cores
   OpticsConfig optics;
   SensorConfig sensor;
+  FisherConfig fisher;
   ModelConfig model;
   TrainConfig train;
   DataConfig data;

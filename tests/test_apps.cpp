@@ -383,3 +383,29 @@ TEST_CASE("hsd_train writes the contract's outputs and resumes exactly after SIG
   CHECK_THAT(bad.err, Catch::Contains("train.lr_net"));
   CHECK(lines(bad.err) == 1);
 }
+
+TEST_CASE("hsd_fisher writes the CRLB table and a design that training and hsd_psf can load", "[app][fisher]") {
+  const fs::path out = fs::temp_directory_path() / "hsd_test_fisher";
+  fs::remove_all(out);
+  const std::string sets = " --set fisher.design_samples=32 --set fisher.window_px=9 --set fisher.steps=6"
+                           " --set fisher.zernike_modes=6 --set fisher.photons=2000";
+  const Run r = run("hsd_fisher --config configs/tiny.json" + sets + " --out " + out.string());
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  for (const char* f : {"crlb.json", "crlb.md", "fisher_height.pt", "fisher_curve.png", "psf_atlas_fisher.png", "config.json"})
+    CHECK(fs::exists(out / f));
+  const auto j = nlohmann::json::parse(std::ifstream(out / "crlb.json"));
+  for (const char* k : {"fresnel", "spiral", "fisher"}) {
+    REQUIRE(j.contains(k));
+    CHECK(j[k]["aggregate"].get<double>() > 0.0);
+  }
+  CHECK(j["fisher"]["aggregate"].get<double>() <= j["fresnel"]["aggregate"].get<double>());
+  // The design is a height-map file for optics.doe.init = "fisher".
+  const Run psf = run("hsd_psf --config configs/tiny.json --set optics.doe.init=fisher --set optics.doe.fisher_path=" +
+                      (out / "fisher_height.pt").string() + " --out " + (out / "psf").string());
+  INFO(psf.err);
+  CHECK(psf.code == 0);
+  const Run bad = run("hsd_fisher --config configs/tiny.json --set fisher.basis=pixels --out " + (out / "bad").string());
+  CHECK(bad.code == 2);
+  CHECK_THAT(bad.err, Catch::Contains("fisher.basis"));
+}

@@ -1,0 +1,169 @@
+// hsd_fisher: the CRLB of the Fresnel and spiral DOEs and a Fisher-information
+// design (optics/fisher.h, optics/fisher_design.h). Writes DIR/crlb.json
+// (fresnel, spiral, fisher: aggregate and per-parameter CRLBs), DIR/crlb.md,
+// DIR/fisher_height.pt (height-map file on the config's DOE grid, usable as
+// optics.doe.init = "fisher" via optics.doe.fisher_path, or "file:PATH"),
+// DIR/fisher_curve.png, DIR/psf_atlas_fisher.png and DIR/config.json.
+#include <chrono>
+#include <cstdio>
+
+#include <torch/torch.h>
+
+#include "common/app.h"
+#include "common/atomic_file.h"
+#include "common/error.h"
+#include "common/log.h"
+#include "optics/doe.h"
+#include "optics/fisher.h"
+#include "optics/fisher_design.h"
+#include "optics/psf.h"
+#include "optics/psf_atlas.h"
+#include "train/plot.h"
+
+using namespace hsd;
+
+namespace {
+
+const char* kUsage =
+    "hsd_fisher --config FILE [--set key=VALUE ...] --out DIR\n"
+    "  Computes the Cramer-Rao lower bound of inverse depth and wavelength for the\n"
+    "  Fresnel and spiral DOEs and designs a DOE that minimises it (fisher.*: photon\n"
+    "  budget, background, basis, steps). Writes DIR/crlb.json, DIR/crlb.md,\n"
+    "  DIR/fisher_height.pt, DIR/fisher_curve.png, DIR/psf_atlas_fisher.png and\n"
+    "  DIR/config.json. Train from the design with optics.doe.init=fisher and\n"
+    "  optics.doe.fisher_path=DIR/fisher_height.pt.";
+
+std::vector<double> strided(const std::vector<double>& v, int64_t stride) {
+  std::vector<double> out;
+  for (size_t i = 0; i < v.size(); i += size_t(stride)) out.push_back(v[i]);
+  if (out.back() != v.back()) out.push_back(v.back());
+  return out;
+}
+
+Json report_json(const optics::CrlbReport& r) {
+  return Json{{"aggregate", r.aggregate.item<double>()},
+              {"mean_crlb_inv_depth_per_m", r.crlb_inv_depth.mean().item<double>()},
+              {"mean_crlb_wavelength_nm", r.crlb_wavelength_nm.mean().item<double>()},
+              {"max_condition_number", std::isfinite(r.max_condition) ? Json(r.max_condition) : Json("inf")},
+              {"crlb_inv_depth_per_m", std::vector<double>(r.crlb_inv_depth.data_ptr<double>(),
+                                                           r.crlb_inv_depth.data_ptr<double>() + r.crlb_inv_depth.numel())},
+              {"crlb_wavelength_nm", std::vector<double>(r.crlb_wavelength_nm.data_ptr<double>(),
+                                                         r.crlb_wavelength_nm.data_ptr<double>() + r.crlb_wavelength_nm.numel())}};
+}
+
+int run(const AppArgs& args) {
+  const Config cfg = load_config(args.config_path, args.overrides);
+  const auto& F = cfg.fisher;
+  const auto material = optics::Material::load(cfg.optics.material);
+  // The design grid: the DOE's physical size at fisher.design_samples samples.
+  OpticsConfig design = cfg.optics;
+  if (F.design_samples > 0) {
+    design.doe_pitch_m = cfg.optics.doe_pitch_m * double(cfg.optics.doe_samples) / double(F.design_samples);
+    design.doe_samples = F.design_samples;
+  }
+  const torch::Device cpu(torch::kCPU);
+  const optics::PsfSpec dspec = optics::make_psf_spec(design, material, cpu);
+  const optics::FisherGeometry g = optics::make_fisher_geometry(dspec, F.window_px, F.pixel_nodes);
+  optics::FisherSettings s;
+  s.photons = F.photons, s.background = F.background;
+  s.wavelengths_nm = strided(cfg.optics.wavelengths_nm, F.wavelength_stride);
+  s.depths_m = strided(cfg.optics.depths_m, F.depth_stride);
+  const auto& zs = cfg.optics.depths_m;
+  s.inv_depth_spacing = zs.size() > 1 ? std::fabs(1.0 / zs.front() - 1.0 / zs.back()) / double(zs.size() - 1) : 1.0;
+  s.band_width_nm = cfg.optics.band_width_m() * 1e9;
+  setup_threads(cfg.threads);
+  make_dirs(args.out_dir);
+  const auto t0 = std::chrono::steady_clock::now();
+
+  auto family = [&](const std::string& init) {
+    OpticsConfig o = design;
+    o.doe.init = init;
+    return optics::make_doe(o, material, cfg.seed, cpu);
+  };
+  const optics::Doe fresnel = family("fresnel"), spiral = family("spiral");
+  log::info("CRLB over " + std::to_string(s.wavelengths_nm.size()) + " bands x " + std::to_string(s.depths_m.size()) +
+            " depths, " + c10::str(F.photons) + " photons, background " + c10::str(F.background) + " per pixel");
+  const optics::CrlbReport r_fresnel = optics::crlb_report(g, material, fresnel.height().to(torch::kFloat64), s);
+  const optics::CrlbReport r_spiral = optics::crlb_report(g, material, spiral.height().to(torch::kFloat64), s);
+
+  // The design: from the unwrapped Fresnel lens (the Fresnel DOE exactly) or flat.
+  const double lam0 = design.doe.design_wavelength_m, eta0 = material.index(lam0);
+  const double z0 = design.doe.design_depth_m > 0 ? design.doe.design_depth_m : optics::middle_depth_m(design.depths_m);
+  auto start_on = [&](int64_t n, double pitch) {
+    return F.start == "fresnel"
+               ? optics::fresnel_lens_height(n, pitch, lam0, eta0, z0, design.sensor_distance_m)
+               : torch::zeros({n, n}, torch::kFloat64);
+  };
+  const double hmax = fresnel.max_height_m();
+  log::Progress progress("fisher design", long(F.steps));
+  const optics::FisherDesign d = optics::design_fisher_doe(
+      g, material, s, start_on(design.doe_samples, design.doe_pitch_m), hmax, F, [&](int64_t k, double a) {
+        char b[64];
+        std::snprintf(b, sizeof b, "aggregate CRLB %.4g", a);
+        progress.set_suffix(b);
+        if (k > 0) progress.step();
+      });
+  progress.finish();
+  const optics::CrlbReport r_fisher = optics::crlb_report(g, material, d.height_m, s);
+
+  // Outputs: the design on the config's DOE grid.
+  const torch::Tensor h_full = optics::design_height_on_grid(
+      d, start_on(cfg.optics.doe_samples, cfg.optics.doe_pitch_m), cfg.optics.doe_samples, cfg.optics.doe_pitch_m,
+      cfg.optics.aperture_diameter_m, hmax);
+  optics::save_height_file(args.out_dir + "/fisher_height.pt", h_full, cfg.optics.doe_pitch_m);
+  const std::string agg_doc =
+      "mean over the (wavelength, depth) grid of sqrt(((crlb_inv_depth / inv_depth_spacing)^2 + (crlb_wavelength / "
+      "band_width)^2) / 2): the bound in units of one depth layer and one band";
+  Json j{{"units", {{"crlb_inv_depth", "1/m"}, {"crlb_wavelength", "nm"}, {"aggregate", "dimensionless"}}},
+         {"aggregation", agg_doc},
+         {"settings", {{"photons", F.photons}, {"background_per_pixel", F.background}, {"wavelengths_nm", s.wavelengths_nm},
+                       {"depths_m", s.depths_m}, {"inv_depth_spacing_per_m", s.inv_depth_spacing},
+                       {"band_width_nm", s.band_width_nm}, {"window_px", F.window_px}, {"design_samples", g.doe_samples},
+                       {"basis", F.basis}, {"start", F.start}, {"steps", F.steps}}},
+         {"fresnel", report_json(r_fresnel)},
+         {"spiral", report_json(r_spiral)},
+         {"fisher", report_json(r_fisher)}};
+  j["fisher"]["curve"] = d.curve;
+  write_text_file(args.out_dir + "/crlb.json", j.dump(2) + "\n");
+  char line[256];
+  std::string md = "# CRLB of the DOE designs\n\n" + std::string("Aggregate: ") + agg_doc + ".\n\n" +
+                   "| DOE | aggregate | mean CRLB 1/z [1/m] | mean CRLB wavelength [nm] | max condition number |\n|---|---|---|---|---|\n";
+  std::string table = "DOE        aggregate   CRLB 1/z [1/m]   CRLB lambda [nm]   max condition\n";
+  for (const auto& [name, r] : std::vector<std::pair<std::string, const optics::CrlbReport*>>{
+           {"fresnel", &r_fresnel}, {"spiral", &r_spiral}, {"fisher", &r_fisher}}) {
+    std::snprintf(line, sizeof line, "| %s | %.4g | %.4g | %.4g | %.3g |\n", name.c_str(), r->aggregate.item<double>(),
+                  r->crlb_inv_depth.mean().item<double>(), r->crlb_wavelength_nm.mean().item<double>(), r->max_condition);
+    md += line;
+    std::snprintf(line, sizeof line, "%-10s %9.4g %16.4g %18.4g %15.3g\n", name.c_str(), r->aggregate.item<double>(),
+                  r->crlb_inv_depth.mean().item<double>(), r->crlb_wavelength_nm.mean().item<double>(), r->max_condition);
+    table += line;
+  }
+  write_text_file(args.out_dir + "/crlb.md", md);
+  std::printf("%s", table.c_str());
+  std::vector<double> xs;
+  for (size_t k = 0; k < d.curve.size(); ++k) xs.push_back(double(k));
+  train::write_line_plot(args.out_dir + "/fisher_curve.png", "aggregated CRLB during the Fisher design", "step",
+                         {{"fisher design", xs, d.curve, {200, 80, 30}},
+                          {"fresnel", {0.0, xs.back()}, {r_fresnel.aggregate.item<double>(), r_fresnel.aggregate.item<double>()}, {40, 40, 200}},
+                          {"spiral", {0.0, xs.back()}, {r_spiral.aggregate.item<double>(), r_spiral.aggregate.item<double>()}, {40, 160, 40}}},
+                         false);
+  // PSF atlas of the design with the full simulator on the config's grid.
+  {
+    torch::NoGradGuard ng;
+    const optics::PsfSimulator sim(optics::make_psf_spec(cfg.optics, material, cpu));
+    optics::write_psf_atlas(args.out_dir + "/psf_atlas_fisher.png", sim.compute(h_full.to(torch::kFloat32)).psf,
+                            sim.spec().wavelengths_m, sim.spec().depths_m);
+  }
+  write_resolved_config(cfg, args.out_dir);
+  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  log::info("wrote crlb.json, crlb.md, fisher_height.pt, fisher_curve.png, psf_atlas_fisher.png to " + args.out_dir +
+            " (" + c10::str(secs) + " s)");
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  AppSpec spec{"hsd_fisher", kUsage, {}, {}, true, true};
+  return run_app(spec, argc, argv, run);
+}
