@@ -99,6 +99,20 @@ TEST_CASE("fisher: the design lowers the CRLB below the Fresnel start; symmetric
   CHECK(recheck == Approx(d.final_aggregate).epsilon(1e-9));
   CHECK(d.height_m.min().item<double>() >= 0.0);
   CHECK(d.height_m.max().item<double>() < hmax);
+  // Free-form: one height offset per sample; also lowers the bound, and maps to a finer grid.
+  FisherConfig ff = cfg;
+  ff.basis = "freeform";
+  ff.steps = 6;
+  ff.lr = 0.01;
+  const optics::FisherDesign f = optics::design_fisher_doe(g, material, s, start, hmax, ff);
+  CHECK(f.final_aggregate < f.start_aggregate);
+  const torch::Tensor fine = optics::design_height_on_grid(
+      f, optics::fresnel_lens_height(96, 5e-6, 550e-9, 1.46, 0.5, 0.02), 96, 5e-6, 0.44e-3, hmax);
+  CHECK(fine.sizes() == torch::IntArrayRef({96, 96}));
+  CHECK(fine.min().item<double>() >= 0.0);
+  CHECK(fine.max().item<double>() < hmax);
+  // The Zernike design re-evaluated on its own grid is the design.
+  CHECK((optics::design_height_on_grid(d, start, 48, 10e-6, 0.44e-3, hmax) - d.height_m).abs().max().item<double>() < 1e-15);
   // A flat DOE (rotationally symmetric PSF) and no background: finite, condition reported.
   optics::FisherSettings s0 = s;
   s0.background = 0.0;
