@@ -27,7 +27,7 @@ Progress::Progress(std::string label, long total)
 void Progress::step(long n) {
   done_ += n;
   auto now = std::chrono::steady_clock::now();
-  if (std::chrono::duration<double>(now - last_).count() >= 0.5) {
+  if (done_ < total_ && std::chrono::duration<double>(now - last_).count() >= 0.5) {  // the end: finish() prints
     last_ = now;
     print(false);
   }

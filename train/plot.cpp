@@ -14,7 +14,7 @@ namespace hsd::train {
 
 void write_line_plot(const std::string& path, const std::string& title, const std::string& x_label,
                      const std::vector<Series>& series, bool log_y) {
-  const int W = 640, H = 400, left = 70, right = 150, top = 30, bottom = 45;
+  const int W = 680, H = 400, left = 70, right = 190, top = 30, bottom = 45;
   cv::Mat img(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
   double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
   auto tr = [&](double y) { return log_y ? std::log10(y) : y; };

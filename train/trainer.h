@@ -72,6 +72,7 @@ class Trainer {
   model::HsdNet& net() { return net_; }
   optics::Doe& doe() { return doe_; }
   const optics::PsfSimulator& psf() const { return *psf_; }
+  const optics::SensorModel& sensor() const { return sensor_; }
   const Batch& val_batch() const { return val_; }
 
  private:

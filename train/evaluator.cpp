@@ -1,0 +1,217 @@
+#include "train/evaluator.h"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <torch/torch.h>
+
+#include "common/atomic_file.h"
+#include "common/error.h"
+#include "common/log.h"
+#include "data/dataset.h"
+#include "data/image_io.h"
+#include "data/manifest.h"
+#include "data/preview.h"
+#include "optics/psf_atlas.h"
+#include "optics/spectrum.h"
+#include "train/metrics.h"
+#include "train/plot.h"
+
+namespace hsd::train {
+
+namespace {
+
+// Reads PNG files and lays them out in a grid (cols per row), enlarged by `scale`; removes them.
+void montage(const std::vector<std::string>& files, int cols, double scale, const std::string& out) {
+  std::vector<cv::Mat> rows, cells;
+  int width = 0;
+  for (size_t i = 0; i < files.size(); ++i) {
+    cv::Mat m = cv::imread(files[i], cv::IMREAD_COLOR);
+    if (scale != 1.0) cv::resize(m, m, cv::Size(), scale, scale, cv::INTER_NEAREST);
+    cv::copyMakeBorder(m, m, 3, 3, 3, 3, cv::BORDER_CONSTANT, cv::Scalar(255, 255, 255));
+    cells.push_back(m);
+    if (int(cells.size()) == cols || i + 1 == files.size()) {
+      int h = 0;
+      for (auto& c : cells) h = std::max(h, c.rows);
+      for (auto& c : cells)
+        if (c.rows < h) cv::copyMakeBorder(c, c, 0, h - c.rows, 0, 0, cv::BORDER_CONSTANT, cv::Scalar(255, 255, 255));
+      cv::Mat row;
+      cv::hconcat(cells, row);
+      width = std::max(width, row.cols);
+      rows.push_back(row);
+      cells.clear();
+    }
+  }
+  for (auto& r : rows)
+    if (r.cols < width) cv::copyMakeBorder(r, r, 0, 0, 0, width - r.cols, cv::BORDER_CONSTANT, cv::Scalar(255, 255, 255));
+  cv::Mat all;
+  cv::vconcat(rows, all);
+  std::vector<uchar> png;
+  cv::imencode(".png", all, png);
+  write_binary_file(out, std::vector<char>(png.begin(), png.end()));
+  for (const auto& f : files) std::filesystem::remove(f);
+}
+
+std::vector<std::array<int64_t, 4>> read_boxes(const std::string& path, std::vector<std::string>* names) {
+  std::vector<std::array<int64_t, 4>> boxes;
+  Json j;
+  try {
+    j = Json::parse(read_text_file(path));
+    for (const auto& p : j.at("patches")) {
+      const auto b = p.at("box_xyxy");
+      boxes.push_back({b[0].get<int64_t>(), b[1].get<int64_t>(), b[2].get<int64_t>(), b[3].get<int64_t>()});
+      if (names) names->push_back(p.at("name").get<std::string>());
+    }
+  } catch (const Json::exception& e) {
+    input_error(path, std::string("malformed ColorChecker layout (") + e.what() + ")");
+  }
+  return boxes;
+}
+
+}  // namespace
+
+EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& split, const std::string& out_dir) {
+  const std::string root = cfg.data.root;
+  const auto bands = cfg.optics.wavelengths_m();
+  const double bw = cfg.optics.band_width_m();
+  const auto scenes = data::load_split(root, split, bands, bw, cfg.data.loader_threads);
+  const torch::Tensor E = optics::illuminant_bands(cfg.sensor.illuminant, bands, bw);
+  const torch::Tensor ybar = data::cmf_bands(bands, bw)[1].to(torch::kFloat32);
+  const auto& g = cfg.data.generator;
+  const double near = std::min(g.depth_min_m, cfg.optics.depths_m.front()), far = std::max(g.depth_max_m, cfg.optics.depths_m.back());
+  make_dirs(out_dir);
+  torch::NoGradGuard no_grad;
+  trainer.net()->eval();
+  const torch::Tensor h = trainer.doe().height().detach();
+  EvalResult res;
+  int cc_count = 0;
+  log::Progress progress("evaluate", long(scenes.size()));
+  for (size_t i = 0; i < scenes.size(); ++i) {
+    const auto& ls = scenes[i];
+    const auto& sc = ls.scene;
+    const torch::Tensor radiance = sc.kind == data::SpectralKind::Reflectance ? sc.spectral * E.view({-1, 1, 1}) : sc.spectral;
+    auto gen = at::detail::createCPUGenerator(cfg.seed + 7919 * (i + 1));
+    const optics::SensorImage img = optics::simulate_sensor(trainer.psf(), trainer.sensor(), h, radiance.unsqueeze(0),
+                                                            sc.depth_m.unsqueeze(0), gen);
+    const model::NetOutput out = trainer.net()->forward(img.image);
+    const torch::Tensor hs = out.hs[0].cpu(), dp = out.depth_m[0].cpu();
+    SceneMetrics m;
+    m.file = ls.file;
+    m.data_range = std::max(1e-12, radiance.max().item<double>());
+    m.hs_psnr_db = psnr_db(hs, radiance, m.data_range);
+    m.hs_ssim = ssim(hs, radiance, m.data_range);
+    const torch::Tensor Yt = luminance(radiance, ybar), Yp = luminance(hs, ybar);
+    const double yr = std::max(1e-12, Yt.max().item<double>());
+    m.lum_psnr_db = psnr_db(Yp, Yt, yr);
+    m.lum_ssim = ssim(Yp, Yt, yr);
+    const DepthErrors de = depth_errors(dp, sc.depth_m, sc.mask);
+    m.depth_rmse_m = de.rmse_m, m.depth_mae_m = de.mae_m;
+    const std::string stem = out_dir + "/" + std::filesystem::path(ls.file).stem().string();
+    // Pictures: truth | reconstruction | |error| x4 | true depth | predicted depth.
+    const double white = std::max(1e-6, data::spectral_to_linear_srgb(radiance, bands, bw).max().item<double>());
+    data::write_srgb_png(stem + "_a.png", data::spectral_to_linear_srgb(radiance, bands, bw), white);
+    data::write_srgb_png(stem + "_b.png", data::spectral_to_linear_srgb(hs.clamp_min(0), bands, bw), white);
+    data::write_srgb_png(stem + "_c.png", (hs - radiance).abs().mean(0, true).expand({3, -1, -1}), 0.25 * m.data_range);
+    data::write_depth_png(stem + "_d.png", sc.depth_m, sc.mask, near, far);
+    data::write_depth_png(stem + "_e.png", dp, {}, near, far);
+    montage({stem + "_a.png", stem + "_b.png", stem + "_c.png", stem + "_d.png", stem + "_e.png"}, 5, 1.0,
+            stem + "_compare.png");
+    // Spectra at three valid points (the centre and two drawn with the seed).
+    std::vector<std::pair<int64_t, int64_t>> pts{{sc.spectral.size(1) / 2, sc.spectral.size(2) / 2}};
+    std::mt19937_64 rng(cfg.seed + i);
+    while (pts.size() < 3) {
+      const int64_t y = int64_t(rng() % uint64_t(sc.spectral.size(1))), x = int64_t(rng() % uint64_t(sc.spectral.size(2)));
+      if (sc.mask[0][y][x].item<float>() > 0.5f) pts.push_back({y, x});
+    }
+    std::vector<Series> series;
+    const std::array<std::array<int, 3>, 3> colours{{{200, 60, 30}, {30, 150, 30}, {30, 30, 200}}};
+    std::vector<double> wl(cfg.optics.wavelengths_nm.begin(), cfg.optics.wavelengths_nm.end());
+    for (size_t k = 0; k < pts.size(); ++k) {
+      const auto [y, x] = pts[k];
+      std::vector<double> t, p;
+      for (int64_t l = 0; l < radiance.size(0); ++l) t.push_back(radiance[l][y][x].item<double>()), p.push_back(hs[l][y][x].item<double>());
+      char name[64];
+      std::snprintf(name, sizeof name, "(%lld,%lld) truth", (long long)x, (long long)y);
+      series.push_back({name, wl, t, colours[k]});
+      auto light = colours[k];
+      for (int& c : light) c = 255 - (255 - c) / 3;  // the reconstruction in a lighter shade
+      series.push_back({"  reconstruction", wl, p, light});
+    }
+    write_line_plot(stem + "_spectra.png", "radiance spectra at three points (x, y)", "wavelength [nm]", series, false);
+    // ColorChecker: recovered reflectance in each patch.
+    const std::string layout = root + "/colorchecker_layout.json";
+    if (std::filesystem::path(ls.file).stem() == "colorchecker" && std::filesystem::exists(layout)) {
+      std::vector<std::string> names;
+      const auto boxes = read_boxes(layout, &names);
+      const torch::Tensor rec = patch_reflectances(hs, E, boxes);
+      const torch::Tensor tru = patch_reflectances(sc.spectral * E.view({-1, 1, 1}), E, boxes);
+      m.colorchecker_rmse = mean_patch_rmse(rec, tru);
+      std::vector<std::string> files;
+      for (size_t k = 0; k < boxes.size(); ++k) {
+        const std::string f = out_dir + "/cc_" + std::to_string(k) + ".png";
+        std::vector<double> t(tru[int64_t(k)].data_ptr<double>(), tru[int64_t(k)].data_ptr<double>() + tru.size(1));
+        std::vector<double> r(rec[int64_t(k)].data_ptr<double>(), rec[int64_t(k)].data_ptr<double>() + rec.size(1));
+        write_line_plot(f, names[k], "nm", {{"truth", wl, t, {30, 30, 30}}, {"recovered", wl, r, {30, 30, 220}}}, false);
+        files.push_back(f);
+      }
+      montage(files, 6, 0.5, out_dir + "/colorchecker_spectra.png");
+      res.mean.colorchecker_rmse = (cc_count == 0 ? 0.0 : res.mean.colorchecker_rmse) + m.colorchecker_rmse;
+      ++cc_count;
+    }
+    res.scenes.push_back(m);
+    progress.step();
+  }
+  progress.finish();
+  auto& a = res.mean;
+  a.file = "mean";
+  const double n = double(res.scenes.size());
+  for (const auto& m : res.scenes) {
+    a.hs_psnr_db += m.hs_psnr_db / n, a.hs_ssim += m.hs_ssim / n, a.lum_psnr_db += m.lum_psnr_db / n;
+    a.lum_ssim += m.lum_ssim / n, a.depth_rmse_m += m.depth_rmse_m / n, a.depth_mae_m += m.depth_mae_m / n;
+  }
+  if (cc_count > 0) a.colorchecker_rmse /= double(cc_count);
+  else a.colorchecker_rmse = -1;
+  optics::write_psf_atlas(out_dir + "/psf_atlas.png", trainer.psf().compute(h).psf.cpu(), trainer.psf().spec().wavelengths_m,
+                          trainer.psf().spec().depths_m);
+  // metrics.json (CONTRACT.md keys) and report.md.
+  auto row = [](const SceneMetrics& m) {
+    Json j{{"file", m.file}, {"hs_psnr_db", m.hs_psnr_db}, {"hs_ssim", m.hs_ssim}, {"lum_psnr_db", m.lum_psnr_db},
+           {"lum_ssim", m.lum_ssim}, {"depth_rmse_m", m.depth_rmse_m}, {"depth_mae_m", m.depth_mae_m}};
+    if (m.data_range > 0) j["psnr_data_range"] = m.data_range;
+    if (m.colorchecker_rmse >= 0) j["colorchecker_reflectance_rmse"] = m.colorchecker_rmse;
+    return j;
+  };
+  Json j = row(a);
+  j.erase("file");
+  j["split"] = split;
+  j["scenes"] = Json::array();
+  for (const auto& m : res.scenes) j["scenes"].push_back(row(m));
+  j["notes"] = "PSNR and SSIM data range: each scene's largest true radiance (luminance: its largest true Y); "
+               "scene radiance = reflectance x " + cfg.sensor.illuminant + " (band means, max 1); SSIM per Wang et al. 2004 "
+               "(11x11 Gaussian window, sigma 1.5) per band, averaged; depth errors over valid pixels";
+  write_text_file(out_dir + "/metrics.json", j.dump(2) + "\n");
+  std::string md = "# Evaluation (" + split + " split)\n\n" + j["notes"].get<std::string>() + ".\n\n" +
+                   "| scene | HS PSNR [dB] | HS SSIM | lum PSNR [dB] | lum SSIM | depth RMSE [m] | depth MAE [m] | ColorChecker RMSE |\n"
+                   "|---|---|---|---|---|---|---|---|\n";
+  char buf[320];
+  std::vector<SceneMetrics> all = res.scenes;
+  all.push_back(a);
+  for (const auto& m : all) {
+    std::snprintf(buf, sizeof buf, "| %s | %.2f | %.4f | %.2f | %.4f | %.4f | %.4f | %s |\n", m.file.c_str(), m.hs_psnr_db,
+                  m.hs_ssim, m.lum_psnr_db, m.lum_ssim, m.depth_rmse_m, m.depth_mae_m,
+                  m.colorchecker_rmse >= 0 ? c10::str(m.colorchecker_rmse).c_str() : "");
+    md += buf;
+  }
+  md += "\nPictures: `<scene>_compare.png` (truth | reconstruction | |error| x4 | true depth | predicted depth), "
+        "`<scene>_spectra.png`, `colorchecker_spectra.png`, `psf_atlas.png`.\n";
+  write_text_file(out_dir + "/report.md", md);
+  trainer.net()->train();
+  return res;
+}
+
+}  // namespace hsd::train

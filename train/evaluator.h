@@ -1,0 +1,32 @@
+// Evaluation of a trained system on whole scenes of a split (metrics.h): each
+// scene is lit by sensor.illuminant (reflectance scenes), imaged through the
+// trained DOE with the sensor model (noise from a fixed seed), reconstructed
+// by the network, and compared with the truth. Writes pictures per scene
+// (truth vs reconstruction in sRGB, error map, depth maps with colour bars,
+// spectra at chosen points), the ColorChecker's 24-patch spectral plot, the
+// DOE's PSF atlas, metrics.json and report.md.
+#pragma once
+#include <string>
+#include <vector>
+
+#include "common/config.h"
+#include "train/trainer.h"
+
+namespace hsd::train {
+
+struct SceneMetrics {
+  std::string file;
+  double data_range = 0;  // PSNR/SSIM range: the scene's largest true radiance
+  double hs_psnr_db = 0, hs_ssim = 0, lum_psnr_db = 0, lum_ssim = 0, depth_rmse_m = 0, depth_mae_m = 0;
+  double colorchecker_rmse = -1;  // < 0: not a ColorChecker scene
+};
+
+struct EvalResult {
+  std::vector<SceneMetrics> scenes;
+  SceneMetrics mean;  // means over the scenes (colorchecker_rmse over ColorChecker scenes)
+};
+
+// The trainer supplies the optics, the DOE and the network (load a checkpoint first).
+EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& split, const std::string& out_dir);
+
+}  // namespace hsd::train
