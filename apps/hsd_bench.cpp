@@ -25,6 +25,8 @@ const char* kUsage =
     "  NAME: data  the data path: scene generation, loading with 1 and N threads,\n"
     "              the patch sampler and patch extraction (--scenes 8)\n"
     "  NAME: train seconds per training step and peak memory (--patch 256 --batch 1)\n"
+    "  NAME: reconstruct  seconds per megapixel of the exported reconstructor in tiles\n"
+    "              (--size 1024 --tile 512 --overlap 64)\n"
     "  --config defaults to configs/paper.json of the source tree.\n"
     "  --json prints exactly one JSON object on stdout.";
 
@@ -42,7 +44,8 @@ int run(const AppArgs& args) {
   else if (name == "sim") rc = bench::bench_sim(cfg, args, out);
   else if (name == "data") rc = bench::bench_data(cfg, args, out);
   else if (name == "train") rc = bench::bench_train(cfg, args, out);
-  else input_error("hsd_bench " + name, "unknown benchmark (known: psf, sim, data, train)");
+  else if (name == "reconstruct") rc = bench::bench_reconstruct(cfg, args, out);
+  else input_error("hsd_bench " + name, "unknown benchmark (known: psf, sim, data, train, reconstruct)");
   out.json["hsd_version"] = HSD_VERSION;
   out.json["config"] = config;
   if (json) std::printf("%s\n", out.json.dump().c_str());
@@ -52,6 +55,6 @@ int run(const AppArgs& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  AppSpec spec{"hsd_bench", kUsage, {"--threads", "--repeats", "--patch", "--bands", "--depths", "--psf", "--pupil", "--scenes", "--batch"}, {"--json", "--no-baseline"}, false, false};
+  AppSpec spec{"hsd_bench", kUsage, {"--threads", "--repeats", "--patch", "--bands", "--depths", "--psf", "--pupil", "--scenes", "--batch", "--size", "--tile", "--overlap"}, {"--json", "--no-baseline"}, false, false};
   return run_app(spec, argc, argv, run);
 }

@@ -13,6 +13,7 @@
 #include <nlohmann/json.hpp>
 
 #include "common/tensor_io.h"
+#include "data/image_io.h"
 #include "data/scene_exr.h"
 #include "optics/spectrum.h"
 #include "helpers.h"
@@ -208,6 +209,12 @@ TEST_CASE("hsd_bench data and train --json measure the data path and a training 
   CHECK(t["seconds_per_step"].get<double>() > 0.0);
   CHECK(t.contains("peak_rss_mib"));
   CHECK(run("hsd_bench train --batch 0").code == 2);
+  const auto [rout, rcode] = capture("cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) +
+                                     "/hsd_bench reconstruct --json --config configs/tiny.json --size 64 --tile 32 --overlap 0"
+                                     " --threads 2 --set model.base_width=4 --set model.levels=2 2>/dev/null");
+  CHECK(rcode == 0);
+  REQUIRE(lines(rout) == 1);
+  CHECK(nlohmann::json::parse(rout)["seconds_per_megapixel"].get<double>() > 0.0);
 }
 
 TEST_CASE("hsd_bench sim --json reports the contract's keys", "[app][bench]") {
@@ -410,7 +417,7 @@ TEST_CASE("hsd_fisher writes the CRLB table and a design that training and hsd_p
   CHECK_THAT(bad.err, Catch::Contains("fisher.basis"));
 }
 
-TEST_CASE("hsd_eval writes metrics.json, the report and pictures for a trained checkpoint", "[app][eval]") {
+TEST_CASE("hsd_eval and hsd_export on a trained checkpoint: metrics, report, pictures, TorchScript", "[app][eval]") {
   const fs::path base = fs::temp_directory_path() / "hsd_test_eval";
   fs::remove_all(base);
   const std::string sets =
@@ -433,6 +440,52 @@ TEST_CASE("hsd_eval writes metrics.json, the report and pictures for a trained c
   for (const char* f : {"report.md", "psf_atlas.png", "colorchecker_spectra.png", "scene_test_000_compare.png",
                         "scene_test_000_spectra.png"})
     CHECK(fs::exists(base / "eval" / f));
+  // Export the same checkpoint: TorchScript with the contract's signature and attributes.
+  const Run ex = run("hsd_export --config configs/tiny.json" + sets + " --checkpoint " +
+                     (base / "run/checkpoints/last.pt").string() + " --out " + (base / "export").string());
+  INFO(ex.err);
+  REQUIRE(ex.code == 0);
+  for (const char* f : {"reconstructor.pt", "doe_height.pt", "psf_atlas.png", "config.json"}) CHECK(fs::exists(base / "export" / f));
+  const std::string py = "/usr/bin/python3 -c \"import torch; m = torch.jit.load('" + (base / "export/reconstructor.pt").string() +
+                         "'); hs, z = m(torch.rand(1, 3, 20, 18)); assert tuple(hs.shape) == (1, 3, 20, 18), hs.shape; "
+                         "assert tuple(z.shape) == (1, 1, 20, 18); assert m.wavelengths_m.dtype == torch.float64; "
+                         "assert m.depth_range_m.numel() == 2; print('ok', m.camera)\" 2>&1";
+  CHECK(capture(py).first.find("ok canon") != std::string::npos);
+  // Reconstruct an sRGB PNG and a linear EXR with the exported model, in tiles.
+  {
+    const torch::Tensor rgb = torch::rand({3, 70, 66});
+    data::write_srgb_png((base / "frame.png").string(), rgb);
+    data::write_channels_exr((base / "frame.exr").string(), rgb, {"R", "G", "B"});
+    for (const char* in : {"frame.png", "frame.exr"}) {
+      const fs::path out = base / (std::string("rec_") + in);
+      const Run rr = run("hsd_reconstruct --model " + (base / "export/reconstructor.pt").string() + " --input " +
+                         (base / in).string() + " --tile 32 --overlap 0 --out " + out.string());
+      INFO(rr.err);
+      REQUIRE(rr.code == 0);
+      const torch::Tensor z = data::read_channels_exr((out / "depth.exr").string(), {"Z"});
+      CHECK(z.sizes() == torch::IntArrayRef({1, 70, 66}));
+      CHECK(z.min().item<double>() > 0.0);
+      CHECK(fs::exists(out / "hs.exr"));
+      CHECK(fs::exists(out / "hs_srgb.png"));
+      CHECK(fs::exists(out / "depth.png"));
+    }
+    // hs.exr carries S0.<nm> channels for the model's bands.
+    const torch::Tensor hsx = data::read_channels_exr((base / "rec_frame.png" / "hs.exr").string(),
+                                                      {"S0.450nm", "S0.550nm", "S0.650nm"});
+    CHECK(hsx.sizes() == torch::IntArrayRef({3, 70, 66}));
+    // Bad inputs: a file that is not a model, a missing model, a missing image.
+    Run b = run("hsd_reconstruct --model " + (base / "export/doe_height.pt").string() + " --input " + (base / "frame.png").string() +
+                " --out " + (base / "rb").string());
+    CHECK(b.code == 2);
+    CHECK_THAT(b.err, Catch::Contains("doe_height.pt"));
+    b = run("hsd_reconstruct --model " + (base / "none.pt").string() + " --input " + (base / "frame.png").string() + " --out " +
+            (base / "rb").string());
+    CHECK(b.code == 2);
+    b = run("hsd_reconstruct --model " + (base / "export/reconstructor.pt").string() + " --input " + (base / "nope.png").string() +
+            " --out " + (base / "rb").string());
+    CHECK(b.code == 2);
+    CHECK_THAT(b.err, Catch::Contains("nope.png"));
+  }
   Run bad = run("hsd_eval --config configs/tiny.json" + sets + " --checkpoint " + (base / "none.pt").string() + " --out " +
                 (base / "bad").string());
   CHECK(bad.code == 2);

@@ -1,0 +1,99 @@
+// hsd_reconstruct: a sensor image (linear RGB EXR, or an 8/16-bit sRGB PNG
+// decoded to linear) -> DIR/hs.exr (S0.<nm> radiance channels), DIR/depth.exr
+// (Z, metres), DIR/hs_srgb.png and DIR/depth.png, with an exported
+// reconstructor (hsd_export). Large frames run in overlapping tiles
+// (model/tiled_inference.h) with a progress bar.
+#include <filesystem>
+#include <memory>
+
+#include <opencv2/imgcodecs.hpp>
+#include <torch/script.h>
+#include <torch/torch.h>
+
+#include "common/app.h"
+#include "common/atomic_file.h"
+#include "common/error.h"
+#include "common/log.h"
+#include "data/image_io.h"
+#include "data/preview.h"
+#include "data/scene_exr.h"
+#include "model/tiled_inference.h"
+
+using namespace hsd;
+
+namespace {
+
+const char* kUsage =
+    "hsd_reconstruct --model reconstructor.pt --input IMAGE [--tile 512 --overlap 64] --out DIR\n"
+    "  IMAGE: linear RGB OpenEXR (channels R, G, B) or 8/16-bit PNG (sRGB, decoded\n"
+    "  to linear). Writes DIR/hs.exr (S0.<nm> channels), DIR/depth.exr (Z, metres),\n"
+    "  DIR/hs_srgb.png and DIR/depth.png. Tiles of --tile pixels with --overlap\n"
+    "  pixels blended on each side (both multiples of 32).";
+
+torch::Tensor read_input(const std::string& path) {
+  if (!std::filesystem::exists(path)) input_error(path, "no such file (--input)");
+  const std::string ext = std::filesystem::path(path).extension().string();
+  if (ext == ".exr" || ext == ".EXR") return data::read_channels_exr(path, {"R", "G", "B"});
+  cv::Mat m = cv::imread(path, cv::IMREAD_UNCHANGED);
+  if (m.empty()) input_error(path, "not a readable image (expected an OpenEXR with R, G, B or a PNG)");
+  if (m.channels() != 3) input_error(path, "has " + std::to_string(m.channels()) + " channels; a colour (3-channel) image is needed");
+  if (m.depth() != CV_8U && m.depth() != CV_16U) input_error(path, "must be 8- or 16-bit");
+  cv::Mat f;
+  m.convertTo(f, CV_32F, m.depth() == CV_8U ? 1.0 / 255.0 : 1.0 / 65535.0);
+  const int64_t H = f.rows, W = f.cols;
+  torch::Tensor v = torch::from_blob(f.data, {H, W, 3}, torch::kFloat32).clone().flip(2).permute({2, 0, 1}).contiguous();
+  return torch::where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055).pow(2.4));
+}
+
+int run(const AppArgs& args) {
+  const std::string model_path = args.option("--model", ""), input = args.option("--input", "");
+  if (model_path.empty()) input_error("--model", "required (DIR/reconstructor.pt from hsd_export)");
+  if (input.empty()) input_error("--input", "required (a linear RGB EXR or an sRGB PNG)");
+  const int64_t tile = args.integer("--tile", 512), overlap = args.integer("--overlap", 64);
+  if (tile < 32 || tile % 32 || overlap < 0 || overlap % 32 || 2 * overlap >= tile)
+    input_error("--tile/--overlap", "need multiples of 32 with 2·overlap < tile");
+  if (!std::filesystem::exists(model_path)) input_error(model_path, "no such file (--model)");
+  torch::jit::Module m;
+  try {
+    m = torch::jit::load(model_path);
+  } catch (const std::exception& e) {
+    input_error(model_path, "not a TorchScript module (" + std::string(e.what()).substr(0, 120) + ")");
+  }
+  if (!m.hasattr("wavelengths_m") || !m.hasattr("depth_range_m") || !m.find_method("forward"))
+    input_error(model_path, "is not an hsd reconstructor (needs forward, wavelengths_m and depth_range_m; make it with hsd_export)");
+  const torch::Tensor wl = m.attr("wavelengths_m").toTensor(), range = m.attr("depth_range_m").toTensor();
+  const torch::Tensor image = read_input(input);
+  setup_threads(0);
+  make_dirs(args.out_dir);
+  m.eval();
+  torch::NoGradGuard ng;
+  std::unique_ptr<log::Progress> progress;
+  auto f = [&](const torch::Tensor& x) {
+    const auto out = m.forward({x}).toTuple();
+    return std::make_pair(out->elements()[0].toTensor(), out->elements()[1].toTensor());
+  };
+  const auto [hs, depth] = model::tiled_reconstruct(f, image, tile, overlap, [&](int64_t, int64_t total) {
+    if (!progress) progress = std::make_unique<log::Progress>("tiles", long(total));
+    progress->step();
+  });
+  if (progress) progress->finish();
+  std::vector<double> wavelengths(wl.data_ptr<double>(), wl.data_ptr<double>() + wl.numel());
+  std::vector<std::string> names;
+  for (double w : wavelengths) names.push_back(data::spectral_channel_name("S0", w));
+  data::write_channels_exr(args.out_dir + "/hs.exr", hs, names);
+  data::write_channels_exr(args.out_dir + "/depth.exr", depth, {"Z"});
+  const double bw = wavelengths.size() > 1 ? (wavelengths.back() - wavelengths.front()) / double(wavelengths.size() - 1) : 10e-9;
+  const torch::Tensor rgb = data::spectral_to_linear_srgb(hs.clamp_min(0), wavelengths, bw);
+  data::write_srgb_png(args.out_dir + "/hs_srgb.png", rgb, std::max(1e-6, rgb.max().item<double>()));
+  data::write_depth_png(args.out_dir + "/depth.png", depth, {}, range[0].item<double>(), range[1].item<double>());
+  log::info("wrote " + args.out_dir + "/hs.exr (" + std::to_string(names.size()) + " bands), depth.exr, hs_srgb.png, depth.png (" +
+            std::to_string(image.size(2)) + "x" + std::to_string(image.size(1)) + ")");
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  AppSpec spec{"hsd_reconstruct", kUsage, {"--model", "--input", "--tile", "--overlap"}, {}, false, true};
+  return run_app(spec, argc, argv, run);
+}

@@ -1,0 +1,101 @@
+#include "model/torchscript_export.h"
+
+#include <sstream>
+
+namespace hsd::model {
+
+namespace {
+
+std::string flat(const std::string& name) {
+  std::string s = name;
+  for (char& c : s)
+    if (c == '.') c = '_';
+  return "p_" + s;
+}
+
+// TorchScript for one conv -> norm -> ReLU (×2) block registered under `mod`.
+void block_source(std::ostringstream& o, const std::string& var, const std::string& mod, const std::string& norm) {
+  const int stride = norm == "none" ? 2 : 3;  // Sequential indices per (conv, [norm], relu)
+  for (int k = 0; k < 2; ++k) {
+    const std::string conv = mod + "." + std::to_string(stride * k);
+    o << "        " << var << " = torch.conv2d(" << var << ", self." << flat(conv + ".weight") << ", "
+      << (norm == "none" ? "self." + flat(conv + ".bias") : std::string("None")) << ", [1, 1], [1, 1], [1, 1], 1)\n";
+    if (norm != "none") {
+      const std::string n = mod + "." + std::to_string(stride * k + 1);
+      if (norm == "batch")
+        o << "        " << var << " = torch.batch_norm(" << var << ", self." << flat(n + ".weight") << ", self."
+          << flat(n + ".bias") << ", self." << flat(n + ".running_mean") << ", self." << flat(n + ".running_var")
+          << ", False, 0.1, 1e-05, False)\n";
+      else
+        o << "        " << var << " = torch.group_norm(" << var << ", self.groups_" << flat(n) << ", self."
+          << flat(n + ".weight") << ", self." << flat(n + ".bias") << ", 1e-05, False)\n";
+    }
+    o << "        " << var << " = torch.relu(" << var << ")\n";
+  }
+}
+
+}  // namespace
+
+torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
+  const NetOptions& opt = net->options();
+  torch::jit::Module m("HsdReconstructor");
+  torch::NoGradGuard no_grad;
+  for (const auto& p : net->named_parameters()) m.register_parameter(flat(p.key()), p.value().detach().clone(), false);
+  for (const auto& b : net->named_buffers())
+    if (b.key().find("num_batches_tracked") == std::string::npos) m.register_buffer(flat(b.key()), b.value().detach().clone());
+  if (opt.norm == "group")
+    for (const auto& mod : net->named_modules())
+      if (auto* g = mod.value()->as<torch::nn::GroupNormImpl>())
+        m.register_attribute("groups_" + flat(mod.key()), c10::IntType::get(), g->options.num_groups());
+  m.register_attribute("wavelengths_m", c10::TensorType::get(), torch::tensor(meta.wavelengths_m, torch::kFloat64));
+  m.register_attribute("depth_range_m", c10::TensorType::get(),
+                       torch::tensor(std::vector<double>{opt.depth_min_m, opt.depth_max_m}, torch::kFloat64));
+  for (const auto& [k, v] : meta.strings) m.register_attribute(k, c10::StringType::get(), v);
+
+  const int64_t L = opt.levels, mult = int64_t(1) << L;
+  std::ostringstream o;
+  o << "def forward(self, image: Tensor) -> Tuple[Tensor, Tensor]:\n"
+    << "        B = image.size(0)\n        C = image.size(1)\n        H = image.size(2)\n        W = image.size(3)\n"
+    << "        ph = (" << mult << " - H % " << mult << ") % " << mult << "\n"
+    << "        pw = (" << mult << " - W % " << mult << ") % " << mult << "\n"
+    << "        x = image\n"
+    << "        if ph > 0 or pw > 0:\n"
+    << "            if ph < H and pw < W:\n"
+    << "                x = torch.reflection_pad2d(x, [0, pw, 0, ph])\n"
+    << "            else:\n"
+    << "                x = torch.replication_pad2d(x, [0, pw, 0, ph])\n";
+  for (int64_t l = 0; l < L; ++l) {
+    block_source(o, "x", "down" + std::to_string(l), opt.norm);
+    o << "        s" << l << " = x\n"
+      << "        x = torch.max_pool2d(x, [2, 2], [2, 2], [0, 0], [1, 1], False)\n";
+  }
+  block_source(o, "x", "bottom", opt.norm);
+  for (const std::string branch : {"hs", "depth"}) {
+    o << "        y_" << branch << " = x\n";
+    for (int64_t l = L - 1; l >= 0; --l) {
+      const std::string y = "y_" + branch, up = "up_" + branch + std::to_string(l);
+      o << "        " << y << " = torch.upsample_bilinear2d(" << y << ", [s" << l << ".size(2), s" << l
+        << ".size(3)], False, None, None)\n"
+        << "        " << y << " = torch.relu(torch.conv2d(" << y << ", self." << flat(up + ".weight") << ", self."
+        << flat(up + ".bias") << ", [1, 1], [1, 1], [1, 1], 1))\n"
+        << "        " << y << " = torch.cat([" << y << ", s" << l << "], 1)\n";
+      block_source(o, y, "dec_" + branch + std::to_string(l), opt.norm);
+    }
+  }
+  o << "        hs = torch.conv2d(y_hs, self.p_head_hs_weight, self.p_head_hs_bias, [1, 1], [0, 0], [1, 1], 1)\n"
+    << "        d = torch.sigmoid(torch.conv2d(y_depth, self.p_head_depth_weight, self.p_head_depth_bias, [1, 1], [0, 0], [1, 1], 1))\n"
+    << "        hs = hs[:, :, 0:H, 0:W]\n"
+    << "        d = d[:, :, 0:H, 0:W]\n"
+    << "        Lb = self.p_upsampling_weights.size(0)\n"
+    << "        up = torch.mm(self.p_upsampling_weights, image.permute([1, 0, 2, 3]).reshape([C, B * H * W]))\n"
+    << "        hs = hs + up.reshape([Lb, B, H, W]).permute([1, 0, 2, 3])\n"
+    << "        inv_far = 1.0 / " << c10::str(opt.depth_max_m) << "\n"
+    << "        inv_near = 1.0 / " << c10::str(opt.depth_min_m) << "\n"
+    << "        depth = 1.0 / (inv_far + d * (inv_near - inv_far))\n"
+    << "        return (hs, depth)\n";
+  m.define(o.str());
+  m.eval();
+  return m;
+}
+
+}  // namespace hsd::model

@@ -1,0 +1,27 @@
+// The network as a self-contained TorchScript module (CONTRACT.md, "Exported
+// reconstructor"): forward(x [B, 3, H, W] linear sensor RGB) -> (hs [B, L, H, W],
+// depth [B, 1, H, W] metres). C++ cannot script a torch::nn::Module, so the
+// exporter writes HsdNet's forward pass as TorchScript source (generated for
+// its levels and normalisation, in eval mode) on a torch::jit::Module that
+// holds copies of the weights, the spectral-upsampling weights and the depth
+// mapping; inputs of any size are padded as HsdNet pads them.
+#pragma once
+#include <map>
+#include <string>
+#include <vector>
+
+#include <torch/script.h>
+
+#include "model/unet.h"
+
+namespace hsd::model {
+
+struct ExportMetadata {
+  std::vector<double> wavelengths_m;
+  std::map<std::string, std::string> strings;  // e.g. camera, doe, config_sha, hsd_version
+};
+
+// A module loadable by torch::jit::load and Python's torch.jit.load.
+torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta);
+
+}  // namespace hsd::model

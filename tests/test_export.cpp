@@ -1,0 +1,90 @@
+// The TorchScript export of the network: the same outputs as the C++ model
+// (batch, group and no normalisation; sizes that need padding), after a save
+// and torch::jit::load, and in Python (torch.jit.load) when python3-torch is
+// installed (scripts/setup.sh installs it).
+#include <catch2/catch.hpp>
+#include <cstdio>
+#include <filesystem>
+
+#include <torch/script.h>
+
+#include "common/tensor_io.h"
+#include "model/tiled_inference.h"
+#include "model/torchscript_export.h"
+
+using namespace hsd;
+namespace fs = std::filesystem;
+
+TEST_CASE("export: the TorchScript module reproduces the network, saved, reloaded and in Python", "[export]") {
+  for (const std::string norm : {"batch", "group", "none"}) {
+    INFO("norm " << norm);
+    torch::manual_seed(5);
+    model::NetOptions o;
+    o.bands = 6, o.base_width = 8, o.levels = 2, o.norm = norm, o.depth_min_m = 0.4, o.depth_max_m = 2.5;
+    model::HsdNet net(o, torch::rand({6, 3}));
+    net->train();
+    for (int k = 0; k < 3; ++k) net->forward(torch::rand({2, 3, 16, 16}));  // running statistics
+    net->eval();
+    const torch::Tensor x = torch::rand({2, 3, 21, 13});  // padded to 24 x 16 inside
+    torch::NoGradGuard ng;
+    const model::NetOutput ref = net->forward(x);
+    model::ExportMetadata meta{{400e-9, 450e-9, 500e-9, 550e-9, 600e-9, 650e-9}, {{"camera", "test"}}};
+    torch::jit::Module m = model::export_torchscript(net, meta);
+    auto check = [&](torch::jit::Module& mod) {
+      const auto out = mod.forward({x}).toTuple();
+      const torch::Tensor hs = out->elements()[0].toTensor(), d = out->elements()[1].toTensor();
+      REQUIRE(hs.sizes() == ref.hs.sizes());
+      REQUIRE(d.sizes() == ref.depth_m.sizes());
+      CHECK((hs - ref.hs).abs().max().item<double>() <= 1e-5 * ref.hs.abs().max().item<double>());
+      CHECK((d - ref.depth_m).abs().max().item<double>() <= 1e-5 * ref.depth_m.abs().max().item<double>());
+    };
+    check(m);
+    const fs::path dir = fs::temp_directory_path() / ("hsd_test_export_" + norm);
+    fs::create_directories(dir);
+    m.save((dir / "reconstructor.pt").string());
+    torch::jit::Module loaded = torch::jit::load((dir / "reconstructor.pt").string());
+    check(loaded);
+    CHECK(loaded.attr("wavelengths_m").toTensor().size(0) == 6);
+    CHECK(loaded.attr("depth_range_m").toTensor()[1].item<double>() == Approx(2.5));
+    CHECK(loaded.attr("camera").toStringRef() == "test");
+    // Python: torch.jit.load and compare with the C++ outputs.
+    save_tensor_dict((dir / "io.pt").string(), {{"x", x}, {"hs", ref.hs}, {"depth", ref.depth_m}});
+    const std::string py = "/usr/bin/python3 -c \"import torch; m = torch.jit.load('" + (dir / "reconstructor.pt").string() +
+                           "'); d = torch.load('" + (dir / "io.pt").string() + "'); hs, z = m(d['x']); "
+                           "e1 = float((hs - d['hs']).abs().max() / d['hs'].abs().max()); "
+                           "e2 = float((z - d['depth']).abs().max() / d['depth'].abs().max()); "
+                           "assert e1 < 1e-5 and e2 < 1e-5, (e1, e2); print('ok')\" 2>&1";
+    std::string got;
+    if (FILE* f = popen(py.c_str(), "r")) {
+      char buf[512];
+      size_t n;
+      while ((n = fread(buf, 1, sizeof buf, f)) > 0) got.append(buf, n);
+      pclose(f);
+    }
+    INFO("python3 said: " << got);
+    CHECK(got.find("ok") != std::string::npos);
+  }
+}
+
+TEST_CASE("export: tiled reconstruction equals the whole frame's", "[export]") {
+  torch::manual_seed(8);
+  model::NetOptions o;
+  o.bands = 4, o.base_width = 4, o.levels = 2, o.norm = "batch";
+  model::HsdNet net(o, torch::rand({4, 3}));
+  net->eval();
+  torch::NoGradGuard ng;
+  const torch::Tensor img = torch::rand({3, 100, 90});
+  const model::NetOutput whole = net->forward(img.unsqueeze(0));
+  auto f = [&](const torch::Tensor& x) {
+    const auto out = net->forward(x);
+    return std::make_pair(out.hs, out.depth_m);
+  };
+  int64_t tiles = 0;
+  const auto [hs, depth] = model::tiled_reconstruct(f, img, 32, 12, [&](int64_t, int64_t total) { tiles = total; });
+  CHECK(tiles == 12);  // 4 x 3 tiles of 32 px
+  const double e_hs = (hs - whole.hs[0]).abs().max().item<double>() / whole.hs.abs().max().item<double>();
+  const double e_d = (depth - whole.depth_m[0]).abs().max().item<double>() / whole.depth_m.abs().max().item<double>();
+  INFO("relative differences: cube " << e_hs << ", depth " << e_d);
+  CHECK(e_hs < 1e-4);
+  CHECK(e_d < 1e-4);
+}
