@@ -4,12 +4,16 @@
 // spectral plot and the DOE's PSF atlas.
 #include <filesystem>
 
+#include <torch/script.h>
 #include <torch/torch.h>
 
 #include "common/app.h"
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/log.h"
+#include "optics/doe.h"
+#include "optics/psf.h"
+#include "optics/sensor.h"
 #include "train/evaluator.h"
 #include "train/trainer.h"
 
@@ -18,26 +22,53 @@ using namespace hsd;
 namespace {
 
 const char* kUsage =
-    "hsd_eval --config FILE --checkpoint CKPT [--split test] [--set key=VALUE ...] --out DIR\n"
+    "hsd_eval --config FILE (--checkpoint CKPT | --model reconstructor.pt [--doe H.pt]) [--split test]\n"
+    "         [--set key=VALUE ...] --out DIR\n"
     "  Evaluates the DOE and network of a training checkpoint on every scene of a\n"
     "  split of data.root: hyperspectral and luminance PSNR/SSIM, depth RMSE/MAE,\n"
     "  ColorChecker reflectance RMSE. Writes DIR/metrics.json, DIR/report.md and\n"
-    "  pictures. (--model reconstructor.pt arrives with hsd_export.)";
+    "  pictures. With --model, the DOE is DIR_OF_MODEL/doe_height.pt (hsd_export) or --doe.";
 
 int run(const AppArgs& args) {
   const Config cfg = load_config(args.config_path, args.overrides);
-  if (args.has("--model"))
-    input_error("--model", "TorchScript reconstructors come with hsd_export (not built yet); use --checkpoint CKPT");
-  const std::string ckpt = args.option("--checkpoint", "");
-  if (ckpt.empty()) input_error("--checkpoint", "required (a training checkpoint, e.g. DIR/checkpoints/last.pt)");
-  if (!std::filesystem::exists(ckpt)) input_error(ckpt, "no such checkpoint (--checkpoint)");
+  const std::string ckpt = args.option("--checkpoint", ""), model_path = args.option("--model", "");
+  if (ckpt.empty() == model_path.empty())
+    input_error("--checkpoint/--model", "give exactly one: a training checkpoint or an exported reconstructor.pt");
   const std::string split = args.option("--split", "test");
   if (split != "train" && split != "val" && split != "test" && split != "all")
     input_error("--split", "expected train, val, test or all, got \"" + split + "\"");
-  setup_threads(cfg.threads);
-  train::Trainer trainer(cfg);
-  trainer.load_checkpoint(ckpt);
-  const train::EvalResult r = train::evaluate(trainer, cfg, split, args.out_dir);
+  train::EvalResult r;
+  if (!ckpt.empty()) {
+    if (!std::filesystem::exists(ckpt)) input_error(ckpt, "no such checkpoint (--checkpoint)");
+    setup_threads(cfg.threads);
+    train::Trainer trainer(cfg);
+    trainer.load_checkpoint(ckpt);
+    r = train::evaluate(trainer, cfg, split, args.out_dir);
+  } else {
+    // An exported model: the DOE it expects travels beside it (doe_height.pt), or --doe.
+    if (!std::filesystem::exists(model_path)) input_error(model_path, "no such file (--model)");
+    const std::string doe = args.option("--doe", (std::filesystem::path(model_path).parent_path() / "doe_height.pt").string());
+    if (!std::filesystem::exists(doe)) input_error(doe, "no DOE height file for the model (hsd_export writes doe_height.pt; or --doe PATH)");
+    torch::jit::Module m;
+    try {
+      m = torch::jit::load(model_path);
+    } catch (const std::exception& e) {
+      input_error(model_path, "not a TorchScript module (" + std::string(e.what()).substr(0, 120) + ")");
+    }
+    if (!m.hasattr("wavelengths_m") || m.attr("wavelengths_m").toTensor().numel() != int64_t(cfg.optics.wavelengths_nm.size()))
+      input_error(model_path, "its wavelengths_m do not match optics.wavelengths_nm of the config");
+    setup_threads(cfg.threads);
+    m.eval();
+    const auto material = optics::Material::load(cfg.optics.material);
+    const optics::PsfSimulator sim(optics::make_psf_spec(cfg.optics, material, torch::kCPU));
+    const optics::SensorModel sensor = optics::make_sensor_model(cfg.sensor, sim.spec(), cfg.optics.band_width_m());
+    const torch::Tensor h = optics::load_height_file(doe, cfg.optics.doe_samples, cfg.optics.doe_pitch_m);
+    auto net = [&](const torch::Tensor& x) {
+      const auto o = m.forward({x}).toTuple();
+      return std::make_pair(o->elements()[0].toTensor(), o->elements()[1].toTensor());
+    };
+    r = train::evaluate(sim, sensor, h, net, cfg, split, args.out_dir);
+  }
   write_resolved_config(cfg, args.out_dir);
   char buf[256];
   std::snprintf(buf, sizeof buf, "mean over %zu scenes: HS PSNR %.2f dB, SSIM %.4f; depth RMSE %.4f m", r.scenes.size(),
@@ -50,6 +81,6 @@ int run(const AppArgs& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  AppSpec spec{"hsd_eval", kUsage, {"--checkpoint", "--model", "--split"}, {}, true, true};
+  AppSpec spec{"hsd_eval", kUsage, {"--checkpoint", "--model", "--split", "--doe"}, {}, true, true};
   return run_app(spec, argc, argv, run);
 }

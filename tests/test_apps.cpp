@@ -451,6 +451,15 @@ TEST_CASE("hsd_eval and hsd_export on a trained checkpoint: metrics, report, pic
                          "assert tuple(z.shape) == (1, 1, 20, 18); assert m.wavelengths_m.dtype == torch.float64; "
                          "assert m.depth_range_m.numel() == 2; print('ok', m.camera)\" 2>&1";
   CHECK(capture(py).first.find("ok canon") != std::string::npos);
+  // hsd_eval with the exported model (and the DOE beside it) gives the checkpoint's metrics.
+  const Run em = run("hsd_eval --config configs/tiny.json" + sets + " --model " + (base / "export/reconstructor.pt").string() +
+                     " --out " + (base / "eval_model").string());
+  INFO(em.err);
+  REQUIRE(em.code == 0);
+  const auto jm = nlohmann::json::parse(std::ifstream(base / "eval_model" / "metrics.json"));
+  for (const char* k : {"hs_psnr_db", "hs_ssim", "depth_rmse_m", "colorchecker_reflectance_rmse"})
+    CHECK(jm[k].get<double>() == Approx(j[k].get<double>()).epsilon(1e-4));
+  CHECK(run("hsd_eval --config configs/tiny.json" + sets + " --out " + (base / "bad").string()).code == 2);  // neither
   // Reconstruct an sRGB PNG and a linear EXR with the exported model, in tiles.
   {
     const torch::Tensor rgb = torch::rand({3, 70, 66});

@@ -76,6 +76,19 @@ std::vector<std::array<int64_t, 4>> read_boxes(const std::string& path, std::vec
 }  // namespace
 
 EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& split, const std::string& out_dir) {
+  trainer.net()->eval();
+  auto net = [&](const torch::Tensor& x) {
+    const model::NetOutput o = trainer.net()->forward(x);
+    return std::make_pair(o.hs, o.depth_m);
+  };
+  EvalResult r = evaluate(trainer.psf(), trainer.sensor(), trainer.doe().height().detach(), net, cfg, split, out_dir);
+  trainer.net()->train();
+  return r;
+}
+
+EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& sensor, const torch::Tensor& height_m,
+                    const Reconstructor& reconstruct, const Config& cfg, const std::string& split,
+                    const std::string& out_dir) {
   const std::string root = cfg.data.root;
   const auto bands = cfg.optics.wavelengths_m();
   const double bw = cfg.optics.band_width_m();
@@ -86,8 +99,7 @@ EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& spli
   const double near = std::min(g.depth_min_m, cfg.optics.depths_m.front()), far = std::max(g.depth_max_m, cfg.optics.depths_m.back());
   make_dirs(out_dir);
   torch::NoGradGuard no_grad;
-  trainer.net()->eval();
-  const torch::Tensor h = trainer.doe().height().detach();
+  const torch::Tensor h = height_m.detach();
   EvalResult res;
   int cc_count = 0;
   log::Progress progress("evaluate", long(scenes.size()));
@@ -96,10 +108,10 @@ EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& spli
     const auto& sc = ls.scene;
     const torch::Tensor radiance = sc.kind == data::SpectralKind::Reflectance ? sc.spectral * E.view({-1, 1, 1}) : sc.spectral;
     auto gen = at::detail::createCPUGenerator(cfg.seed + 7919 * (i + 1));
-    const optics::SensorImage img = optics::simulate_sensor(trainer.psf(), trainer.sensor(), h, radiance.unsqueeze(0),
+    const optics::SensorImage img = optics::simulate_sensor(psf, sensor, h, radiance.unsqueeze(0),
                                                             sc.depth_m.unsqueeze(0), gen);
-    const model::NetOutput out = trainer.net()->forward(img.image);
-    const torch::Tensor hs = out.hs[0].cpu(), dp = out.depth_m[0].cpu();
+    const auto out = reconstruct(img.image);
+    const torch::Tensor hs = out.first[0].cpu(), dp = out.second[0].cpu();
     SceneMetrics m;
     m.file = ls.file;
     m.data_range = std::max(1e-12, radiance.max().item<double>());
@@ -176,8 +188,8 @@ EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& spli
   }
   if (cc_count > 0) a.colorchecker_rmse /= double(cc_count);
   else a.colorchecker_rmse = -1;
-  optics::write_psf_atlas(out_dir + "/psf_atlas.png", trainer.psf().compute(h).psf.cpu(), trainer.psf().spec().wavelengths_m,
-                          trainer.psf().spec().depths_m);
+  optics::write_psf_atlas(out_dir + "/psf_atlas.png", psf.compute(h).psf.cpu(), psf.spec().wavelengths_m,
+                          psf.spec().depths_m);
   // metrics.json (CONTRACT.md keys) and report.md.
   auto row = [](const SceneMetrics& m) {
     Json j{{"file", m.file}, {"hs_psnr_db", m.hs_psnr_db}, {"hs_ssim", m.hs_ssim}, {"lum_psnr_db", m.lum_psnr_db},
@@ -210,7 +222,6 @@ EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& spli
   md += "\nPictures: `<scene>_compare.png` (truth | reconstruction | |error| x4 | true depth | predicted depth), "
         "`<scene>_spectra.png`, `colorchecker_spectra.png`, `psf_atlas.png`.\n";
   write_text_file(out_dir + "/report.md", md);
-  trainer.net()->train();
   return res;
 }
 

@@ -6,7 +6,9 @@
 // spectra at chosen points), the ColorChecker's 24-patch spectral plot, the
 // DOE's PSF atlas, metrics.json and report.md.
 #pragma once
+#include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/config.h"
@@ -26,7 +28,16 @@ struct EvalResult {
   SceneMetrics mean;  // means over the scenes (colorchecker_rmse over ColorChecker scenes)
 };
 
-// The trainer supplies the optics, the DOE and the network (load a checkpoint first).
+// A reconstructor: sensor image [B, 3, H, W] -> (cube [B, L, H, W], depth [B, 1, H, W] metres).
+using Reconstructor = std::function<std::pair<torch::Tensor, torch::Tensor>(const torch::Tensor&)>;
+
+// The optics (PSF simulator, sensor model, DOE height [N, N]) image each scene;
+// `reconstruct` recovers it.
+EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& sensor, const torch::Tensor& height_m,
+                    const Reconstructor& reconstruct, const Config& cfg, const std::string& split,
+                    const std::string& out_dir);
+
+// The same with a trainer's optics, DOE and network (load a checkpoint first).
 EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& split, const std::string& out_dir);
 
 }  // namespace hsd::train
