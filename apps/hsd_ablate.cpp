@@ -19,6 +19,7 @@
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/log.h"
+#include "train/metrics_csv.h"
 #include "train/plot.h"
 
 using namespace hsd;
@@ -51,16 +52,8 @@ void run_or_fail(const std::string& cmd, const std::string& what) {
 // (wall_s, val_loss) pairs of a metrics.csv.
 std::vector<std::pair<double, double>> val_curve(const std::string& csv) {
   std::vector<std::pair<double, double>> out;
-  std::ifstream f(csv);
-  std::string line;
-  std::getline(f, line);
-  while (std::getline(f, line)) {
-    std::vector<std::string> c;
-    std::stringstream ss(line);
-    std::string cell;
-    while (std::getline(ss, cell, ',')) c.push_back(cell);
+  for (const auto& c : train::read_csv_rows(csv))
     if (c.size() > 3 && !c[3].empty()) out.emplace_back(std::stod(c[1]), std::stod(c[3]));
-  }
   return out;
 }
 

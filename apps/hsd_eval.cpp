@@ -11,6 +11,7 @@
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/log.h"
+#include "model/torchscript_export.h"
 #include "optics/doe.h"
 #include "optics/psf.h"
 #include "optics/sensor.h"
@@ -46,27 +47,17 @@ int run(const AppArgs& args) {
     r = train::evaluate(trainer, cfg, split, args.out_dir);
   } else {
     // An exported model: the DOE it expects travels beside it (doe_height.pt), or --doe.
-    if (!std::filesystem::exists(model_path)) input_error(model_path, "no such file (--model)");
     const std::string doe = args.option("--doe", (std::filesystem::path(model_path).parent_path() / "doe_height.pt").string());
     if (!std::filesystem::exists(doe)) input_error(doe, "no DOE height file for the model (hsd_export writes doe_height.pt; or --doe PATH)");
-    torch::jit::Module m;
-    try {
-      m = torch::jit::load(model_path);
-    } catch (const std::exception& e) {
-      input_error(model_path, "not a TorchScript module (" + std::string(e.what()).substr(0, 120) + ")");
-    }
-    if (!m.hasattr("wavelengths_m") || m.attr("wavelengths_m").toTensor().numel() != int64_t(cfg.optics.wavelengths_nm.size()))
+    torch::jit::Module m = model::load_reconstructor(model_path);
+    if (m.attr("wavelengths_m").toTensor().numel() != int64_t(cfg.optics.wavelengths_nm.size()))
       input_error(model_path, "its wavelengths_m do not match optics.wavelengths_nm of the config");
     setup_threads(cfg.threads);
-    m.eval();
     const auto material = optics::Material::load(cfg.optics.material);
     const optics::PsfSimulator sim(optics::make_psf_spec(cfg.optics, material, torch::kCPU));
     const optics::SensorModel sensor = optics::make_sensor_model(cfg.sensor, sim.spec(), cfg.optics.band_width_m());
     const torch::Tensor h = optics::load_height_file(doe, cfg.optics.doe_samples, cfg.optics.doe_pitch_m);
-    auto net = [&](const torch::Tensor& x) {
-      const auto o = m.forward({x}).toTuple();
-      return std::make_pair(o->elements()[0].toTensor(), o->elements()[1].toTensor());
-    };
+    auto net = [&](const torch::Tensor& x) { return model::run_reconstructor(m, x); };
     r = train::evaluate(sim, sensor, h, net, cfg, split, args.out_dir);
   }
   write_resolved_config(cfg, args.out_dir);

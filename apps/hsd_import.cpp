@@ -34,15 +34,6 @@ const char* kUsage =
     "  depth_max_m). Writes DIR/NAME.exr, NAME_srgb.png, NAME_depth.png and adds\n"
     "  NAME.exr to DIR/manifest.json (split test).";
 
-double number(const AppArgs& a, const std::string& flag, double fallback) {
-  if (!a.options.count(flag)) return fallback;
-  const std::string v = a.options.at(flag);
-  char* end = nullptr;
-  const double x = std::strtod(v.c_str(), &end);
-  if (end == v.c_str() || *end != '\0' || !std::isfinite(x)) input_error(flag, "expected a number, got \"" + v + "\"");
-  return x;
-}
-
 int run(const AppArgs& args) {
   const Config cfg = load_config(args.config_path, args.overrides);
   data::RgbdImport in;
@@ -50,12 +41,12 @@ int run(const AppArgs& args) {
   in.disparity_path = args.option("--disparity", "");
   if (in.rgb_path.empty()) input_error("--rgb", "required (an sRGB image)");
   if (in.disparity_path.empty()) input_error("--disparity", "required (a disparity PNG, 0 = unknown)");
-  in.near_m = number(args, "--near-m", cfg.data.generator.depth_min_m);
-  in.far_m = number(args, "--far-m", cfg.data.generator.depth_max_m);
-  in.focal_px = number(args, "--focal-px", 0.0);
-  in.baseline_m = number(args, "--baseline-m", 0.0);
-  in.doffs_px = number(args, "--doffs-px", 0.0);
-  in.scale = number(args, "--scale", 1.0);
+  in.near_m = args.number("--near-m", cfg.data.generator.depth_min_m);
+  in.far_m = args.number("--far-m", cfg.data.generator.depth_max_m);
+  in.focal_px = args.number("--focal-px", 0.0);
+  in.baseline_m = args.number("--baseline-m", 0.0);
+  in.doffs_px = args.number("--doffs-px", 0.0);
+  in.scale = args.number("--scale", 1.0);
   if (in.focal_px < 0.0) input_error("--focal-px", "must be > 0");
   if (in.focal_px > 0.0 && !(in.baseline_m > 0.0)) input_error("--baseline-m", "must be > 0 with --focal-px");
   const std::string name = args.option("--name", std::filesystem::path(in.rgb_path).stem().string());

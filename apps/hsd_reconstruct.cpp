@@ -18,6 +18,7 @@
 #include "data/preview.h"
 #include "data/scene_exr.h"
 #include "model/tiled_inference.h"
+#include "model/torchscript_export.h"
 
 using namespace hsd;
 
@@ -41,8 +42,7 @@ torch::Tensor read_input(const std::string& path) {
   cv::Mat f;
   m.convertTo(f, CV_32F, m.depth() == CV_8U ? 1.0 / 255.0 : 1.0 / 65535.0);
   const int64_t H = f.rows, W = f.cols;
-  torch::Tensor v = torch::from_blob(f.data, {H, W, 3}, torch::kFloat32).clone().flip(2).permute({2, 0, 1}).contiguous();
-  return torch::where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055).pow(2.4));
+  return data::srgb_to_linear(torch::from_blob(f.data, {H, W, 3}, torch::kFloat32).clone().flip(2).permute({2, 0, 1}).contiguous());
 }
 
 int run(const AppArgs& args) {
@@ -52,26 +52,14 @@ int run(const AppArgs& args) {
   const int64_t tile = args.integer("--tile", 512), overlap = args.integer("--overlap", 64);
   if (tile < 32 || tile % 32 || overlap < 0 || overlap % 32 || 2 * overlap >= tile)
     input_error("--tile/--overlap", "need multiples of 32 with 2·overlap < tile");
-  if (!std::filesystem::exists(model_path)) input_error(model_path, "no such file (--model)");
-  torch::jit::Module m;
-  try {
-    m = torch::jit::load(model_path);
-  } catch (const std::exception& e) {
-    input_error(model_path, "not a TorchScript module (" + std::string(e.what()).substr(0, 120) + ")");
-  }
-  if (!m.hasattr("wavelengths_m") || !m.hasattr("depth_range_m") || !m.find_method("forward"))
-    input_error(model_path, "is not an hsd reconstructor (needs forward, wavelengths_m and depth_range_m; make it with hsd_export)");
+  torch::jit::Module m = model::load_reconstructor(model_path);
   const torch::Tensor wl = m.attr("wavelengths_m").toTensor(), range = m.attr("depth_range_m").toTensor();
   const torch::Tensor image = read_input(input);
   setup_threads(0);
   make_dirs(args.out_dir);
-  m.eval();
   torch::NoGradGuard ng;
   std::unique_ptr<log::Progress> progress;
-  auto f = [&](const torch::Tensor& x) {
-    const auto out = m.forward({x}).toTuple();
-    return std::make_pair(out->elements()[0].toTensor(), out->elements()[1].toTensor());
-  };
+  auto f = [&](const torch::Tensor& x) { return model::run_reconstructor(m, x); };
   const auto [hs, depth] = model::tiled_reconstruct(f, image, tile, overlap, [&](int64_t, int64_t total) {
     if (!progress) progress = std::make_unique<log::Progress>("tiles", long(total));
     progress->step();

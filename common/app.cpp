@@ -1,6 +1,7 @@
 #include "common/app.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <thread>
@@ -20,6 +21,16 @@ namespace hsd {
 std::string AppArgs::option(const std::string& flag, const std::string& fallback) const {
   auto it = options.find(flag);
   return it == options.end() ? fallback : it->second;
+}
+
+double AppArgs::number(const std::string& flag, double fallback) const {
+  auto it = options.find(flag);
+  if (it == options.end()) return fallback;
+  char* end = nullptr;
+  const double v = std::strtod(it->second.c_str(), &end);
+  if (end == it->second.c_str() || *end != '\0' || !std::isfinite(v))
+    input_error(flag, "expected a number, got \"" + it->second + "\"");
+  return v;
 }
 
 int64_t AppArgs::integer(const std::string& flag, int64_t fallback) const {

@@ -24,6 +24,7 @@ struct AppArgs {
   bool has(const std::string& flag) const { return options.count(flag) || switches.count(flag); }
   std::string option(const std::string& flag, const std::string& fallback) const;
   int64_t integer(const std::string& flag, int64_t fallback) const;
+  double number(const std::string& flag, double fallback) const;  // finite; InputError naming the flag
 };
 
 struct AppSpec {

@@ -130,8 +130,9 @@ DataConfig parse_data(const JsonReader& d) {
     g.train_scenes = gr->get_int("train_scenes", g.train_scenes);
     g.val_scenes = gr->get_int("val_scenes", g.val_scenes);
     g.test_scenes = gr->get_int("test_scenes", g.test_scenes);
-    for (const char* k : {"train_scenes", "val_scenes", "test_scenes"})
-      if (gr->get_int(k, 0) < 0 || gr->get_int(k, 0) > 100000) gr->fail(k, "must be in [0, 100000]");
+    for (const auto& [k, v] : {std::pair<const char*, int64_t>{"train_scenes", g.train_scenes},
+                               {"val_scenes", g.val_scenes}, {"test_scenes", g.test_scenes}})
+      if (v < 0 || v > 100000) gr->fail(k, "must be in [0, 100000]");
     g.width_px = gr->get_int("width_px", g.width_px);
     g.height_px = gr->get_int("height_px", g.height_px);
     if (g.width_px < 16 || g.width_px > 8192) gr->fail("width_px", "must be in [16, 8192]");
@@ -274,14 +275,16 @@ Config parse_config(const Json& resolved) {
     T.loss_alpha = t->get_number("loss_alpha", T.loss_alpha);
     T.loss_beta = t->get_number("loss_beta", T.loss_beta);
     T.loss_gamma = t->get_number("loss_gamma", T.loss_gamma);
-    for (const char* k : {"loss_alpha", "loss_beta", "loss_gamma"})
-      if (t->get_number(k, 0.0) < 0.0) t->fail(k, "must be >= 0");
+    for (const auto& [k, v] : {std::pair<const char*, double>{"loss_alpha", T.loss_alpha},
+                               {"loss_beta", T.loss_beta}, {"loss_gamma", T.loss_gamma}})
+      if (v < 0.0) t->fail(k, "must be >= 0");
     T.val_every = t->get_int("val_every", T.val_every);
     T.val_patches = t->get_int("val_patches", T.val_patches);
     T.checkpoint_every = t->get_int("checkpoint_every", T.checkpoint_every);
     T.log_every = t->get_int("log_every", T.log_every);
-    for (const char* k : {"val_every", "val_patches", "checkpoint_every", "log_every"})
-      if (t->get_int(k, 1) < 1) t->fail(k, "must be >= 1");
+    for (const auto& [k, v] : {std::pair<const char*, int64_t>{"val_every", T.val_every}, {"val_patches", T.val_patches},
+                               {"checkpoint_every", T.checkpoint_every}, {"log_every", T.log_every}})
+      if (v < 1) t->fail(k, "must be >= 1");
   }
   if (auto d = r.optional_child("data")) c.data = parse_data(*d);
   r.check_all_used();

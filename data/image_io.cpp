@@ -8,6 +8,10 @@
 
 namespace hsd::data {
 
+torch::Tensor srgb_to_linear(const torch::Tensor& v) {
+  return torch::where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055).pow(2.4));
+}
+
 void write_srgb_png(const std::string& path, const torch::Tensor& rgb, double white) {
   if (rgb.dim() != 3 || rgb.size(0) != 3) input_error(path, "preview needs a [3, H, W] image");
   torch::Tensor v = (rgb.detach().to(torch::kFloat64).cpu() / (white > 0 ? white : 1.0)).clamp(0.0, 1.0);

@@ -1,5 +1,6 @@
 #include "data/preview.h"
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 
@@ -14,9 +15,14 @@
 namespace hsd::data {
 
 torch::Tensor cmf_bands(const std::vector<double>& wavelengths_m, double band_width_m) {
-  return torch::stack({optics::table_bands("cie1931_2deg_cmf.csv", "x_bar", wavelengths_m, band_width_m),
-                       optics::table_bands("cie1931_2deg_cmf.csv", "y_bar", wavelengths_m, band_width_m),
-                       optics::table_bands("cie1931_2deg_cmf.csv", "z_bar", wavelengths_m, band_width_m)});
+  static const optics::SpectralTable cmf = optics::SpectralTable::load_csv(optics::spectra_path("cie1931_2deg_cmf.csv"));
+  const double half_nm = 0.5 * band_width_m * 1e9;
+  torch::Tensor out = torch::empty({3, int64_t(wavelengths_m.size())}, torch::kFloat64);
+  const std::array<const char*, 3> cols{"x_bar", "y_bar", "z_bar"};
+  for (int64_t c = 0; c < 3; ++c)
+    for (size_t l = 0; l < wavelengths_m.size(); ++l)
+      out[c][int64_t(l)] = cmf.band_mean(cols[size_t(c)], wavelengths_m[l] * 1e9 - half_nm, wavelengths_m[l] * 1e9 + half_nm);
+  return out;
 }
 
 torch::Tensor spectral_to_linear_srgb(const torch::Tensor& spectral, const std::vector<double>& wavelengths_m,

@@ -9,6 +9,7 @@
 #include <torch/torch.h>
 
 #include "common/error.h"
+#include "data/image_io.h"
 #include "data/preview.h"
 #include "optics/spectrum.h"
 
@@ -58,8 +59,7 @@ SpectralScene import_rgbd(const RgbdImport& in, const ReflectanceLibrary& lib, c
   }
   const int64_t H = bgr.rows, W = bgr.cols;
   const torch::Tensor rgb8 = torch::from_blob(bgr.data, {H, W, 3}, torch::kUInt8).clone().flip(2).permute({2, 0, 1});
-  torch::Tensor v = rgb8.to(torch::kFloat64) / 255.0;
-  v = torch::where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055).pow(2.4));  // sRGB decoding
+  const torch::Tensor v = srgb_to_linear(rgb8.to(torch::kFloat64) / 255.0);
   SpectralScene s;
   s.wavelengths_m = wavelengths_m;
   s.kind = SpectralKind::Reflectance;

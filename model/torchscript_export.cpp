@@ -1,6 +1,9 @@
 #include "model/torchscript_export.h"
 
+#include <filesystem>
 #include <sstream>
+
+#include "common/error.h"
 
 namespace hsd::model {
 
@@ -96,6 +99,25 @@ torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
   m.define(o.str());
   m.eval();
   return m;
+}
+
+torch::jit::Module load_reconstructor(const std::string& path) {
+  if (!std::filesystem::exists(path)) throw InputError(path + ": no such file (an exported reconstructor.pt)");
+  torch::jit::Module m;
+  try {
+    m = torch::jit::load(path);
+  } catch (const std::exception& e) {
+    throw InputError(path + ": not a TorchScript module (" + std::string(e.what()).substr(0, 120) + ")");
+  }
+  if (!m.hasattr("wavelengths_m") || !m.hasattr("depth_range_m") || !m.find_method("forward"))
+    throw InputError(path + ": is not an hsd reconstructor (needs forward, wavelengths_m and depth_range_m; make it with hsd_export)");
+  m.eval();
+  return m;
+}
+
+std::pair<torch::Tensor, torch::Tensor> run_reconstructor(torch::jit::Module& m, const torch::Tensor& x) {
+  const auto out = m.forward({x}).toTuple();
+  return {out->elements()[0].toTensor(), out->elements()[1].toTensor()};
 }
 
 }  // namespace hsd::model

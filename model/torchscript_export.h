@@ -8,6 +8,7 @@
 #pragma once
 #include <map>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <torch/script.h>
@@ -23,5 +24,12 @@ struct ExportMetadata {
 
 // A module loadable by torch::jit::load and Python's torch.jit.load.
 torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta);
+
+// Loads an exported reconstructor (eval mode); InputError naming the file when
+// it is missing, not TorchScript, or lacks forward / wavelengths_m / depth_range_m.
+torch::jit::Module load_reconstructor(const std::string& path);
+
+// forward of a reconstructor: x [B, 3, H, W] -> (hs [B, L, H, W], depth [B, 1, H, W]).
+std::pair<torch::Tensor, torch::Tensor> run_reconstructor(torch::jit::Module& m, const torch::Tensor& x);
 
 }  // namespace hsd::model

@@ -20,6 +20,8 @@ FisherGeometry make_fisher_geometry(const PsfSpec& spec, int64_t window_px, int6
   g.doe_samples = spec.doe_samples, g.window_px = window_px, g.nodes = nodes;
   g.aperture = aperture_transmission(spec.doe_samples, spec.doe_pitch_m, spec.aperture_diameter_m, spec.aperture_shape)
                    .to(torch::kFloat64);
+  g.aperture_energy = g.aperture.pow(2).sum().item<double>();
+  if (!(g.aperture_energy > 0)) throw InputError("Fisher information: the aperture covers no DOE sample");
   g.pupil_x = centred_coordinates(spec.doe_samples, spec.doe_pitch_m).to(torch::kFloat64);
   const Quadrature1D q = gauss_legendre(nodes);
   const torch::Tensor px = centred_coordinates(window_px, spec.pixel_pitch_m).to(torch::kFloat64);
@@ -50,9 +52,8 @@ torch::Tensor point_psf(const FisherGeometry& g, const torch::Tensor& height_m, 
   // Fraction of the light through the aperture that lands in each pixel
   // (Parseval, as psf.cpp's energy_in_window): light leaving the window is lost,
   // so a design cannot buy information by spreading the PSF beyond it.
-  const double aperture_energy = g.aperture.pow(2).sum().item<double>();
   const torch::Tensor scale = (g.pixel_pitch_m * g.doe_pitch_m / s) * (g.pixel_pitch_m * g.doe_pitch_m / s) / (lam * lam);
-  return pix * scale / std::max(aperture_energy, 1e-300);
+  return pix * scale / g.aperture_energy;
 }
 
 torch::Tensor fisher_from_jacobian(const torch::Tensor& mu, const std::vector<torch::Tensor>& dmu, double background) {

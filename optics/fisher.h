@@ -32,6 +32,7 @@ struct FisherGeometry {
   double sensor_distance_m = 0, pixel_pitch_m = 0, doe_pitch_m = 0, aperture_diameter_m = 0;
   int64_t doe_samples = 0, window_px = 0, nodes = 2;
   torch::Tensor aperture;  // [N, N] float64
+  double aperture_energy = 0;  // Σ A² (Parseval normalisation of the PSF)
   torch::Tensor pupil_x;   // [N] float64 (metres)
   torch::Tensor sensor_x;  // [P·n] float64: node positions, pixel-major
   torch::Tensor weights;   // [n] float64 Gauss–Legendre weights (sum 1)

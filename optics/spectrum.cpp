@@ -147,16 +147,6 @@ torch::Tensor illuminant_bands(const std::string& name, const std::vector<double
   return (t / m).to(torch::kFloat32);
 }
 
-torch::Tensor table_bands(const std::string& file, const std::string& column, const std::vector<double>& wavelengths_m,
-                          double band_width_m) {
-  const SpectralTable table = SpectralTable::load_csv(spectra_path(file));
-  if (!table.has_column(column)) input_error(spectra_path(file), "has no column \"" + column + "\"");
-  const double half_nm = 0.5 * band_width_m * 1e9;
-  std::vector<double> v;
-  for (double w : wavelengths_m) v.push_back(table.band_mean(column, w * 1e9 - half_nm, w * 1e9 + half_nm));
-  return torch::tensor(v, torch::kFloat64);
-}
-
 std::array<double, 3> wavelength_display_rgb(double wavelength_m) {
   static const SpectralTable cmf = SpectralTable::load_csv(spectra_path("cie1931_2deg_cmf.csv"));
   const double nm = wavelength_m * 1e9;

@@ -59,10 +59,6 @@ torch::Tensor camera_response(const std::string& camera, const std::vector<doubl
 torch::Tensor illuminant_bands(const std::string& name, const std::vector<double>& wavelengths_m, double band_width_m,
                                const std::string& config_key = "sensor.illuminant");
 
-// Band means of a column of any spectral table (CSV in data/spectra/), float64 [L].
-torch::Tensor table_bands(const std::string& file, const std::string& column, const std::vector<double>& wavelengths_m,
-                          double band_width_m);
-
 // Display colour of a monochromatic wavelength: CIE 1931 x̄ȳz̄ -> linear sRGB,
 // negatives clipped, brightest channel scaled to 1. For tinting PSF plots.
 std::array<double, 3> wavelength_display_rgb(double wavelength_m);

@@ -6,8 +6,6 @@
 #include <fstream>
 #include <random>
 
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
 #include <torch/torch.h>
 
 #include "common/atomic_file.h"
@@ -25,37 +23,6 @@
 namespace hsd::train {
 
 namespace {
-
-// Reads PNG files and lays them out in a grid (cols per row), enlarged by `scale`; removes them.
-void montage(const std::vector<std::string>& files, int cols, double scale, const std::string& out) {
-  std::vector<cv::Mat> rows, cells;
-  int width = 0;
-  for (size_t i = 0; i < files.size(); ++i) {
-    cv::Mat m = cv::imread(files[i], cv::IMREAD_COLOR);
-    if (scale != 1.0) cv::resize(m, m, cv::Size(), scale, scale, cv::INTER_NEAREST);
-    cv::copyMakeBorder(m, m, 3, 3, 3, 3, cv::BORDER_CONSTANT, cv::Scalar(255, 255, 255));
-    cells.push_back(m);
-    if (int(cells.size()) == cols || i + 1 == files.size()) {
-      int h = 0;
-      for (auto& c : cells) h = std::max(h, c.rows);
-      for (auto& c : cells)
-        if (c.rows < h) cv::copyMakeBorder(c, c, 0, h - c.rows, 0, 0, cv::BORDER_CONSTANT, cv::Scalar(255, 255, 255));
-      cv::Mat row;
-      cv::hconcat(cells, row);
-      width = std::max(width, row.cols);
-      rows.push_back(row);
-      cells.clear();
-    }
-  }
-  for (auto& r : rows)
-    if (r.cols < width) cv::copyMakeBorder(r, r, 0, 0, 0, width - r.cols, cv::BORDER_CONSTANT, cv::Scalar(255, 255, 255));
-  cv::Mat all;
-  cv::vconcat(rows, all);
-  std::vector<uchar> png;
-  cv::imencode(".png", all, png);
-  write_binary_file(out, std::vector<char>(png.begin(), png.end()));
-  for (const auto& f : files) std::filesystem::remove(f);
-}
 
 std::vector<std::array<int64_t, 4>> read_boxes(const std::string& path, std::vector<std::string>* names) {
   std::vector<std::array<int64_t, 4>> boxes;
@@ -102,6 +69,7 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
   const torch::Tensor h = height_m.detach();
   EvalResult res;
   int cc_count = 0;
+  double cc_sum = 0.0;
   log::Progress progress("evaluate", long(scenes.size()));
   for (size_t i = 0; i < scenes.size(); ++i) {
     const auto& ls = scenes[i];
@@ -125,13 +93,14 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     m.depth_rmse_m = de.rmse_m, m.depth_mae_m = de.mae_m;
     const std::string stem = out_dir + "/" + std::filesystem::path(ls.file).stem().string();
     // Pictures: truth | reconstruction | |error| x4 | true depth | predicted depth.
-    const double white = std::max(1e-6, data::spectral_to_linear_srgb(radiance, bands, bw).max().item<double>());
-    data::write_srgb_png(stem + "_a.png", data::spectral_to_linear_srgb(radiance, bands, bw), white);
+    const torch::Tensor truth_rgb = data::spectral_to_linear_srgb(radiance, bands, bw);
+    const double white = std::max(1e-6, truth_rgb.max().item<double>());
+    data::write_srgb_png(stem + "_a.png", truth_rgb, white);
     data::write_srgb_png(stem + "_b.png", data::spectral_to_linear_srgb(hs.clamp_min(0), bands, bw), white);
     data::write_srgb_png(stem + "_c.png", (hs - radiance).abs().mean(0, true).expand({3, -1, -1}), 0.25 * m.data_range);
     data::write_depth_png(stem + "_d.png", sc.depth_m, sc.mask, near, far);
     data::write_depth_png(stem + "_e.png", dp, {}, near, far);
-    montage({stem + "_a.png", stem + "_b.png", stem + "_c.png", stem + "_d.png", stem + "_e.png"}, 5, 1.0,
+    write_montage({stem + "_a.png", stem + "_b.png", stem + "_c.png", stem + "_d.png", stem + "_e.png"}, 5, 1.0,
             stem + "_compare.png");
     // Spectra at three valid points (the centre and two drawn with the seed).
     std::vector<std::pair<int64_t, int64_t>> pts{{sc.spectral.size(1) / 2, sc.spectral.size(2) / 2}};
@@ -171,8 +140,8 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
         write_line_plot(f, names[k], "nm", {{"truth", wl, t, {30, 30, 30}}, {"recovered", wl, r, {30, 30, 220}}}, false);
         files.push_back(f);
       }
-      montage(files, 6, 0.5, out_dir + "/colorchecker_spectra.png");
-      res.mean.colorchecker_rmse = (cc_count == 0 ? 0.0 : res.mean.colorchecker_rmse) + m.colorchecker_rmse;
+      write_montage(files, 6, 0.5, out_dir + "/colorchecker_spectra.png");
+      cc_sum += m.colorchecker_rmse;
       ++cc_count;
     }
     res.scenes.push_back(m);
@@ -186,8 +155,7 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     a.hs_psnr_db += m.hs_psnr_db / n, a.hs_ssim += m.hs_ssim / n, a.lum_psnr_db += m.lum_psnr_db / n;
     a.lum_ssim += m.lum_ssim / n, a.depth_rmse_m += m.depth_rmse_m / n, a.depth_mae_m += m.depth_mae_m / n;
   }
-  if (cc_count > 0) a.colorchecker_rmse /= double(cc_count);
-  else a.colorchecker_rmse = -1;
+  a.colorchecker_rmse = cc_count > 0 ? cc_sum / double(cc_count) : -1.0;
   optics::write_psf_atlas(out_dir + "/psf_atlas.png", psf.compute(h).psf.cpu(), psf.spec().wavelengths_m,
                           psf.spec().depths_m);
   // metrics.json (CONTRACT.md keys) and report.md.

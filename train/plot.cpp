@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -61,6 +62,36 @@ void write_line_plot(const std::string& path, const std::string& title, const st
   std::vector<uchar> out;
   if (!cv::imencode(".png", img, out)) input_error(path, "PNG encoding failed");
   write_binary_file(path, std::vector<char>(out.begin(), out.end()));
+}
+
+void write_montage(const std::vector<std::string>& files, int cols, double scale, const std::string& out) {
+  std::vector<cv::Mat> rows, cells;
+  int width = 0;
+  for (size_t i = 0; i < files.size(); ++i) {
+    cv::Mat m = cv::imread(files[i], cv::IMREAD_COLOR);
+    if (scale != 1.0) cv::resize(m, m, cv::Size(), scale, scale, cv::INTER_NEAREST);
+    cv::copyMakeBorder(m, m, 3, 3, 3, 3, cv::BORDER_CONSTANT, cv::Scalar(255, 255, 255));
+    cells.push_back(m);
+    if (int(cells.size()) == cols || i + 1 == files.size()) {
+      int h = 0;
+      for (auto& c : cells) h = std::max(h, c.rows);
+      for (auto& c : cells)
+        if (c.rows < h) cv::copyMakeBorder(c, c, 0, h - c.rows, 0, 0, cv::BORDER_CONSTANT, cv::Scalar(255, 255, 255));
+      cv::Mat row;
+      cv::hconcat(cells, row);
+      width = std::max(width, row.cols);
+      rows.push_back(row);
+      cells.clear();
+    }
+  }
+  for (auto& r : rows)
+    if (r.cols < width) cv::copyMakeBorder(r, r, 0, 0, 0, width - r.cols, cv::BORDER_CONSTANT, cv::Scalar(255, 255, 255));
+  cv::Mat all;
+  cv::vconcat(rows, all);
+  std::vector<uchar> png;
+  cv::imencode(".png", all, png);
+  write_binary_file(out, std::vector<char>(png.begin(), png.end()));
+  for (const auto& f : files) std::filesystem::remove(f);
 }
 
 }  // namespace hsd::train

@@ -16,4 +16,8 @@ struct Series {
 void write_line_plot(const std::string& path, const std::string& title, const std::string& x_label,
                      const std::vector<Series>& series, bool log_y);
 
+// Reads PNG files and lays them out in a grid (cols per row, white borders),
+// enlarged by `scale`; writes `out` atomically and removes the pieces.
+void write_montage(const std::vector<std::string>& files, int cols, double scale, const std::string& out);
+
 }  // namespace hsd::train

@@ -8,9 +8,6 @@
 #include <fstream>
 #include <sstream>
 
-#include <opencv2/imgcodecs.hpp>
-#include <opencv2/imgproc.hpp>
-
 #include "common/app.h"
 #include "common/atomic_file.h"
 #include "common/error.h"
@@ -21,6 +18,7 @@
 #include "data/synthetic_dataset.h"
 #include "model/spectral_upsampling.h"
 #include "optics/psf_atlas.h"
+#include "train/metrics_csv.h"
 #include "train/plot.h"
 #include "train/schedule.h"
 
@@ -36,6 +34,12 @@ uint64_t mix(uint64_t a, uint64_t b) {
   return x;
 }
 constexpr uint64_t kValSeed = 0x5EEDULL;
+
+std::string fmt(const char* f, double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, f, v);
+  return buf;
+}
 
 model::NetOptions net_options(const Config& cfg) {
   model::NetOptions o;
@@ -257,7 +261,8 @@ void Trainer::write_val_pictures(const std::string& dir, int64_t step) {
   const double bw = cfg_.optics.band_width_m();
   char stem[64];
   std::snprintf(stem, sizeof stem, "%s/step_%06lld_", dir.c_str(), (long long)step);
-  const double white = std::max(1e-6, data::spectral_to_linear_srgb(I[0].cpu(), bands, bw).max().item<double>());
+  const torch::Tensor truth0 = data::spectral_to_linear_srgb(I[0].cpu(), bands, bw);
+  const double white = std::max(1e-6, truth0.max().item<double>());
   const auto& g = cfg_.data.generator;
   const double near = std::min(g.depth_min_m, cfg_.optics.depths_m.front()), far = std::max(g.depth_max_m, cfg_.optics.depths_m.back());
   std::vector<std::string> parts;
@@ -265,7 +270,7 @@ void Trainer::write_val_pictures(const std::string& dir, int64_t step) {
     const std::string p = std::string(stem) + std::to_string(k) + "_";
     for (const char* f : {"truth_srgb", "sensor", "recon_srgb", "error_hs", "truth_depth", "recon_depth"})
       parts.push_back(p + f + ".png");
-    data::write_srgb_png(p + "truth_srgb.png", data::spectral_to_linear_srgb(I[k].cpu(), bands, bw), white);
+    data::write_srgb_png(p + "truth_srgb.png", k == 0 ? truth0 : data::spectral_to_linear_srgb(I[k].cpu(), bands, bw), white);
     data::write_srgb_png(p + "recon_srgb.png", data::spectral_to_linear_srgb(out.hs[k].clamp_min(0).cpu(), bands, bw), white);
     data::write_srgb_png(p + "sensor.png", img.image[k].cpu(), std::max(1e-6, img.image[k].max().item<double>()));
     data::write_depth_png(p + "truth_depth.png", Z[k].cpu(), {}, near, far);
@@ -276,25 +281,7 @@ void Trainer::write_val_pictures(const std::string& dir, int64_t step) {
   }
   // One picture per validation: a row per patch, [truth | sensor | reconstruction |
   // |error| | true depth | predicted depth], enlarged 3x; the pieces are removed.
-  std::vector<cv::Mat> rows;
-  for (int64_t k = 0; k < n; ++k) {
-    std::vector<cv::Mat> cells;
-    for (size_t j = 0; j < 6; ++j) {
-      cv::Mat m = cv::imread(parts[size_t(k) * 6 + j], cv::IMREAD_COLOR);
-      cv::resize(m, m, cv::Size(), 3.0, 3.0, cv::INTER_NEAREST);
-      cv::copyMakeBorder(m, m, 4, 4, 4, 4, cv::BORDER_CONSTANT, cv::Scalar(255, 255, 255));
-      cells.push_back(m);
-    }
-    cv::Mat row;
-    cv::hconcat(cells, row);
-    rows.push_back(row);
-  }
-  cv::Mat all;
-  cv::vconcat(rows, all);
-  std::vector<uchar> png;
-  cv::imencode(".png", all, png);
-  write_binary_file(std::string(stem) + "reconstructions.png", std::vector<char>(png.begin(), png.end()));
-  for (const auto& f : parts) std::filesystem::remove(f);
+  write_montage(parts, 6, 3.0, std::string(stem) + "reconstructions.png");
   optics::write_psf_atlas(std::string(stem) + "psf_atlas.png", psf_->compute(doe_.height().detach()).psf.cpu(),
                           psf_->spec().wavelengths_m, psf_->spec().depths_m);
 }
@@ -309,42 +296,29 @@ void Trainer::run(const std::string& out_dir, bool resume) {
   // Rows of metrics.csv: kept in memory, the file rewritten atomically.
   const std::string header =
       "step,wall_s,train_loss,val_loss,train_hs_l1,train_depth_l1,lr_net,lr_doe_m,val_hs_psnr_db,val_depth_rmse_m,val_depth_mae_m";
-  std::vector<std::string> rows;
+  std::vector<std::vector<std::string>> rows;  // cells; empty where not measured
   double wall_offset = 0.0;
   if (resume) {
     if (!std::filesystem::exists(ckpt)) input_error(ckpt, "no checkpoint to resume from (--resume)");
     start = load_checkpoint(ckpt);
-    std::ifstream f(csv);
-    std::string line;
-    std::getline(f, line);
-    while (std::getline(f, line)) {
-      const int64_t s = std::stoll(line.substr(0, line.find(',')));
-      if (s <= start) {  // rows up to the checkpoint's step were written before it
-        rows.push_back(line);
-        wall_offset = std::stod(line.substr(line.find(',') + 1));
+    for (const auto& c : read_csv_rows(csv))
+      if (c.size() > 1 && std::stoll(c[0]) <= start) {  // rows up to the checkpoint's step were written before it
+        rows.push_back(c);
+        wall_offset = std::stod(c[1]);
       }
-    }
     log::info("resuming from " + ckpt + " at step " + std::to_string(start));
   }
-  std::vector<double> xs, tr, vx, vl, psnr;
-  auto refresh_series = [&] {
-    xs.clear(), tr.clear(), vx.clear(), vl.clear(), psnr.clear();
-    for (const auto& r : rows) {
-      std::vector<std::string> c;
-      std::stringstream ss(r);
-      std::string cell;
-      while (std::getline(ss, cell, ',')) c.push_back(cell);
-      while (c.size() < 11) c.push_back("");
+  auto write_outputs = [&] {
+    std::string text = header + "\n";
+    std::vector<double> xs, tr, vx, vl, psnr;
+    for (const auto& c : rows) {
+      for (size_t i = 0; i < c.size(); ++i) text += (i ? "," : "") + c[i];
+      text += "\n";
       xs.push_back(std::stod(c[0]));
       tr.push_back(c[2].empty() ? NAN : std::stod(c[2]));
       if (!c[3].empty()) vx.push_back(std::stod(c[0])), vl.push_back(std::stod(c[3])), psnr.push_back(std::stod(c[8]));
     }
-  };
-  auto write_outputs = [&] {
-    std::string text = header + "\n";
-    for (const auto& r : rows) text += r + "\n";
     write_text_file(csv, text);
-    refresh_series();
     write_line_plot(out_dir + "/curves.png", "loss (L1 cube + weighted depth terms)", "step",
                     {{"train", xs, tr, {200, 120, 30}}, {"validation", vx, vl, {30, 30, 200}}}, true);
     if (!vx.empty())
@@ -363,9 +337,8 @@ void Trainer::run(const std::string& out_dir, bool resume) {
   int64_t rate_n = 0;
   if (start == 0 && T.steps > 0) {  // where validation starts from
     const ValStats v = validate();
-    char buf[200];
-    std::snprintf(buf, sizeof buf, "0,0.000,,%.6g,,,,,%.4f,%.5f,%.5f", v.loss, v.hs_psnr_db, v.depth_rmse_m, v.depth_mae_m);
-    rows.push_back(buf);
+    rows.push_back({"0", "0.000", "", fmt("%.6g", v.loss), "", "", "", "", fmt("%.4f", v.hs_psnr_db),
+                    fmt("%.5f", v.depth_rmse_m), fmt("%.5f", v.depth_mae_m)});
     write_val_pictures(val_dir, 0);
     write_outputs();
   }
@@ -377,20 +350,15 @@ void Trainer::run(const std::string& out_dir, bool resume) {
     const bool last = k + 1 == T.steps;
     const bool do_val = (k + 1) % T.val_every == 0 || last;
     if ((k + 1) % T.log_every == 0 || do_val || k == start) {
-      char buf[400];
-      std::string val_cells = ",,,";
-      ValStats v;
+      std::vector<std::string> row{std::to_string(k + 1), fmt("%.3f", wall()), fmt("%.6g", st.loss), "",
+                                   fmt("%.6g", st.hs), fmt("%.6g", st.depth), fmt("%.4g", st.lr_net),
+                                   fmt("%.4g", st.lr_doe), "", "", ""};
       if (do_val) {
-        v = validate();
-        char vb[160];
-        std::snprintf(vb, sizeof vb, "%.6g,%.4f,%.5f,%.5f", v.loss, v.hs_psnr_db, v.depth_rmse_m, v.depth_mae_m);
-        val_cells = vb;
+        const ValStats v = validate();
+        row[3] = fmt("%.6g", v.loss), row[8] = fmt("%.4f", v.hs_psnr_db);
+        row[9] = fmt("%.5f", v.depth_rmse_m), row[10] = fmt("%.5f", v.depth_mae_m);
       }
-      const std::string vloss = do_val ? val_cells.substr(0, val_cells.find(',')) : "";
-      const std::string vrest = do_val ? val_cells.substr(val_cells.find(',') + 1) : ",,";
-      std::snprintf(buf, sizeof buf, "%lld,%.3f,%.6g,%s,%.6g,%.6g,%.4g,%.4g,%s", (long long)(k + 1), wall(), st.loss,
-                    vloss.c_str(), st.hs, st.depth, st.lr_net, st.lr_doe, vrest.c_str());
-      rows.push_back(buf);
+      rows.push_back(row);
       if (do_val) write_val_pictures(val_dir, k + 1);
       write_outputs();
     }

@@ -30,10 +30,7 @@ int bench_reconstruct(Config cfg, const AppArgs& args, BenchOutput& out) {
   torch::jit::Module m = model::export_torchscript(net, {bands, {}});
   torch::NoGradGuard ng;
   const torch::Tensor img = torch::rand({3, size, size});
-  auto f = [&](const torch::Tensor& x) {
-    const auto r = m.forward({x}).toTuple();
-    return std::make_pair(r->elements()[0].toTensor(), r->elements()[1].toTensor());
-  };
+  auto f = [&](const torch::Tensor& x) { return model::run_reconstructor(m, x); };
   log::info("reconstructing a " + std::to_string(size) + "^2 frame ...");
   const double rss0 = current_rss_mib();
   const double t = median_seconds([&] { model::tiled_reconstruct(f, img, tile, overlap); }, int(args.integer("--repeats", 1)));
