@@ -45,7 +45,8 @@ int run(const AppArgs& args) {
   else if (name == "data") rc = bench::bench_data(cfg, args, out);
   else if (name == "train") rc = bench::bench_train(cfg, args, out);
   else if (name == "reconstruct") rc = bench::bench_reconstruct(cfg, args, out);
-  else input_error("hsd_bench " + name, "unknown benchmark (known: psf, sim, data, train, reconstruct)");
+  else if (name == "accuracy") rc = bench::bench_accuracy(cfg, args, out);
+  else input_error("hsd_bench " + name, "unknown benchmark (known: psf, sim, data, train, reconstruct, accuracy)");
   out.json["hsd_version"] = HSD_VERSION;
   out.json["config"] = config;
   if (json) std::printf("%s\n", out.json.dump().c_str());
@@ -55,6 +56,6 @@ int run(const AppArgs& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  AppSpec spec{"hsd_bench", kUsage, {"--threads", "--repeats", "--patch", "--bands", "--depths", "--psf", "--pupil", "--scenes", "--batch", "--size", "--tile", "--overlap"}, {"--json", "--no-baseline"}, false, false};
+  AppSpec spec{"hsd_bench", kUsage, {"--threads", "--repeats", "--patch", "--bands", "--depths", "--psf", "--pupil", "--scenes", "--batch", "--size", "--tile", "--overlap", "--band-stride", "--ref-oversampling", "--ref-spectral"}, {"--json", "--no-baseline"}, false, false};
   return run_app(spec, argc, argv, run);
 }

@@ -101,6 +101,14 @@ OpticsConfig parse_optics(const JsonReader& r) {
     r.fail("psf_backward", "expected \"store\" or \"recompute\", got \"" + o.psf_backward + "\"");
   o.mft_rank_tol = r.get_number("mft_rank_tol", o.mft_rank_tol);
   if (o.mft_rank_tol < 0.0 || o.mft_rank_tol > 1e-2) r.fail("mft_rank_tol", "must be in [0, 1e-2] (0 = exact)");
+  o.pupil_oversampling = r.get_int("pupil_oversampling", o.pupil_oversampling);
+  if (o.pupil_oversampling < 1 || o.pupil_oversampling > 8) r.fail("pupil_oversampling", "must be in [1, 8]");
+  o.pupil_cell_integration = r.get_string("pupil_cell_integration", o.pupil_cell_integration);
+  if (o.pupil_cell_integration != "sinc_cross" && o.pupil_cell_integration != "sinc" && o.pupil_cell_integration != "midpoint")
+    r.fail("pupil_cell_integration",
+           "expected \"sinc_cross\", \"sinc\" or \"midpoint\", got \"" + o.pupil_cell_integration + "\"");
+  o.spectral_samples = r.get_int("spectral_samples", o.spectral_samples);
+  if (o.spectral_samples < 1 || o.spectral_samples > 9) r.fail("spectral_samples", "must be in [1, 9]");
   o.energy_warn_threshold = r.get_number("energy_warn_threshold", o.energy_warn_threshold);
   if (!(o.energy_warn_threshold >= 0.0 && o.energy_warn_threshold <= 1.0))
     r.fail("energy_warn_threshold", "must be in [0, 1]");

@@ -31,6 +31,19 @@ torch::Tensor compute_defocus_chirp(const torch::Tensor& pupil_x_m, double wavel
   return phasor(pupil_x_m.to(torch::kFloat64).pow(2) * (0.5 * k * curvature), complex_dtype);
 }
 
+torch::Tensor cell_average_factor(const torch::Tensor& slope_rad_per_m, double cell_m) {
+  const torch::Tensor u = slope_rad_per_m.to(torch::kFloat64) * (0.5 * cell_m);
+  // sin(u)/u, with its series 1 − u²/6 where u is tiny (no 0/0)
+  return torch::where(u.abs() < 1e-4, 1.0 - u.pow(2) / 6.0, torch::sin(u) / torch::where(u.abs() < 1e-4, torch::ones_like(u), u));
+}
+
+torch::Tensor cell_cross_factor(const torch::Tensor& slope_rad_per_m, double cell_m) {
+  const torch::Tensor u = slope_rad_per_m.to(torch::kFloat64) * (0.5 * cell_m);
+  // −sinc'(u) = (sin u − u cos u)/u², with its series u/3 − u³/30 where u is tiny
+  const torch::Tensor safe = torch::where(u.abs() < 1e-3, torch::ones_like(u), u);
+  return torch::where(u.abs() < 1e-3, u / 3.0 - u.pow(3) / 30.0, (torch::sin(u) - u * torch::cos(u)) / safe.pow(2));
+}
+
 namespace {
 
 // wrap(s·h) cast to real_dtype, s·h formed in float64. On the CPU one fused
@@ -120,9 +133,14 @@ torch::Tensor matrix_fourier_transform(const torch::Tensor& kernels, const torch
 
 namespace {
 
+// Chirps as [Z, G, N] (a [Z, N] tensor is one group).
+torch::Tensor chirp_groups(const torch::Tensor& chirps) { return chirps.dim() == 2 ? chirps.unsqueeze(1) : chirps; }
+
 struct MftIntensity : public torch::autograd::Function<MftIntensity> {
+  // K_z = Σ_g tilt_g ⊙ chirp_z,g (row-broadcast): tilt [M, N] or [G, M, N], chirps [Z, N] or [Z, G, N].
   static torch::Tensor kernels(const torch::Tensor& tilt, const torch::Tensor& chirps) {
-    return tilt.unsqueeze(0) * chirps.unsqueeze(1);  // [Z, M, N]
+    if (tilt.dim() == 2) return tilt.unsqueeze(0) * chirp_groups(chirps).select(1, 0).unsqueeze(1);  // [Z, M, N]
+    return (tilt.unsqueeze(0) * chirp_groups(chirps).unsqueeze(2)).sum(1);
   }
   static torch::Tensor forward(torch::autograd::AutogradContext* ctx, torch::Tensor field, torch::Tensor tilt,
                                torch::Tensor chirps) {
@@ -146,11 +164,20 @@ struct MftIntensity : public torch::autograd::Function<MftIntensity> {
   }
 };
 
+// W_z = [right ⊙ chirp_z,1; …; right ⊙ chirp_z,G]: right [r, N], chirps [Z, N] or [Z, G, N] -> [Z, G·r, N].
+torch::Tensor group_right(const torch::Tensor& right, const torch::Tensor& chirps) {
+  const torch::Tensor c = chirp_groups(chirps);
+  const int64_t Z = c.size(0), G = c.size(1), r = right.size(0), N = right.size(1);
+  if (G == 1) return right.unsqueeze(0) * c;  // [Z, r, N]
+  return (right.unsqueeze(0).unsqueeze(0) * c.unsqueeze(2)).reshape({Z, G * r, N});
+}
+
 struct MftIntensityLowRank : public torch::autograd::Function<MftIntensityLowRank> {
   static torch::Tensor forward(torch::autograd::AutogradContext* ctx, torch::Tensor field, torch::Tensor left,
                                torch::Tensor right, torch::Tensor chirps) {
-    const int64_t Z = chirps.size(0), R = right.size(0), N = right.size(1);
-    const torch::Tensor w = right.unsqueeze(0) * chirps.unsqueeze(1);                    // [Z, r, N]
+    const int64_t Z = chirps.size(0), N = right.size(1);
+    const torch::Tensor w = group_right(right, chirps);                                  // [Z, G·r, N]
+    const int64_t R = w.size(1);
     const torch::Tensor b = torch::mm(w.reshape({Z * R, N}), field).view({Z, R, N});     // W_z M
     const torch::Tensor c = torch::bmm(b, w.transpose(1, 2));                            // [Z, r, r]
     const int64_t M = left.size(0);
@@ -167,7 +194,7 @@ struct MftIntensityLowRank : public torch::autograd::Function<MftIntensityLowRan
                                                  torch::autograd::variable_list grads) {
     const auto saved = ctx->get_saved_variables();
     const torch::Tensor &F = saved[0], &left = saved[1], &right = saved[2], &chirps = saved[3];
-    const int64_t Z = chirps.size(0), R = right.size(0), N = right.size(1);
+    const int64_t Z = chirps.size(0), R = left.size(1), N = right.size(1);
     const torch::Tensor gF = 2.0 * grads[0] * F;                                         // I = re² + im²
     // F = L C Lᵀ -> dC = Lᴴ dF conj(L);  C = B Wᵀ -> dB = dC conj(W);  B = W M -> dM = Wᴴ dB
     const torch::Tensor lc = left.conj().resolve_conj();
@@ -176,7 +203,7 @@ struct MftIntensityLowRank : public torch::autograd::Function<MftIntensityLowRan
     const torch::Tensor t1 = torch::mm(gF.reshape({Z * M, M}), lc).view({Z, M, R});
     const torch::Tensor gC =
         torch::mm(lc.t(), t1.permute({1, 0, 2}).reshape({M, Z * R})).view({R, Z, R}).permute({1, 0, 2}).contiguous();
-    const torch::Tensor wc = right.conj().resolve_conj().unsqueeze(0) * chirps.conj().resolve_conj().unsqueeze(1);
+    const torch::Tensor wc = group_right(right.conj().resolve_conj(), chirps.conj().resolve_conj());
     const torch::Tensor gB = torch::bmm(gC, wc);                                         // [Z, r, N]
     const torch::Tensor gM = torch::mm(wc.view({Z * R, N}).t(), gB.view({Z * R, N}));
     return {gM, torch::Tensor(), torch::Tensor(), torch::Tensor()};

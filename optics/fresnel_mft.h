@@ -38,6 +38,23 @@ torch::Tensor compute_tilt_kernel(const torch::Tensor& sensor_x_m, const torch::
 torch::Tensor compute_defocus_chirp(const torch::Tensor& pupil_x_m, double wavelength_m, double depth_m,
                                     double sensor_distance_m, c10::ScalarType complex_dtype);
 
+// Cell integration. Each DOE cell (width δ) has constant height, but the smooth
+// phases vary across it; the midpoint rule takes their value at the cell centre.
+// Integrating a phase of local slope β exactly over the cell gives the factor
+// sinc(βδ/2) = sin(βδ/2)/(βδ/2) (real). Applied per axis to the two smooth
+// terms separately: the chirp's slope k(1/z + 1/s)ξ (a factor per pupil sample)
+// and the tilt's k x/s (a factor per sensor point: the cell-shape envelope of a
+// pixelated DOE). The exact factor of the summed slope, sinc(A − B) with
+// A = k(1/z + 1/s)ξδ/2 and B = k x δ/(2s), is to first order in the small B
+//   sinc(A − B) ≈ sinc(A)·sinc(B) − B·sinc'(A),
+// the product plus a cross term that is itself separable: a second kernel
+// term diag(B) T diag(chirp ⊙ (−sinc'(A))) ("sinc_cross"; the kernels below
+// take G = 2 terms). Without it ("sinc") the error is second order in δ.
+// slope_rad_per_m float64 (any shape) -> float64 of the same shape.
+torch::Tensor cell_average_factor(const torch::Tensor& slope_rad_per_m, double cell_m);
+// −sinc'(u) at u = slope·δ/2 (the cross term's pupil factor), float64.
+torch::Tensor cell_cross_factor(const torch::Tensor& slope_rad_per_m, double cell_m);
+
 // Pupil field M = A ⊙ exp(i k (η−1) h): A float64 [N, N] transmission, h [N, N]
 // height in metres (any real dtype, may require grad). The phase is formed in
 // float64 and wrapped before the cast. Returns complex [N, N].
@@ -54,6 +71,7 @@ torch::Tensor matrix_fourier_transform(const torch::Tensor& kernels, const torch
 // factors tilt [M, N] and chirps [Z, N]: the kernels [Z, M, N] are rebuilt in
 // the backward pass instead of being kept (they are the largest tensors of the
 // PSF). Differentiable in `pupil_field` only. Returns real [Z, M, M].
+// With G kernel terms, K_z = Σ_g tilt_g ⊙ chirp_z,g: tilt [G, M, N], chirps [Z, G, N].
 torch::Tensor mft_intensity(const torch::Tensor& tilt, const torch::Tensor& chirps, const torch::Tensor& pupil_field);
 
 // Low-rank form of the tilt kernel on the window: T ≈ left · right with
@@ -70,6 +88,8 @@ LowRankKernel factor_tilt_kernel(const torch::Tensor& tilt, double rel_tol, c10:
 // |F_z|² as mft_intensity, with K_z ≈ left · (right ⊙ chirp_z):
 // F_z = left (W_z M W_zᵀ) leftᵀ, W_z = right ⊙ chirp_z. One autograd node that
 // stores F and the small factors; differentiable in `pupil_field` only.
+// With G kernel terms sharing `right`: left [M, G·r] (the terms' left factors
+// side by side), chirps [Z, G, N]; W_z stacks right ⊙ chirp_z,g over g.
 torch::Tensor mft_intensity_low_rank(const LowRankKernel& kernel, const torch::Tensor& chirps,
                                      const torch::Tensor& pupil_field);
 

@@ -27,6 +27,11 @@ PsfSpec make_psf_spec(const OpticsConfig& cfg, const Material& material, torch::
   s.device = device;
   s.recompute_in_backward = cfg.psf_backward == "recompute";
   s.mft_rank_tol = cfg.mft_rank_tol;
+  s.pupil_oversampling = cfg.pupil_oversampling;
+  s.pupil_cell_integration = cfg.pupil_cell_integration;
+  s.spectral_samples = cfg.spectral_samples;
+  s.band_width_m = cfg.band_width_m();
+  if (s.spectral_samples > 1) s.spectral_refractive_index = material.indices(s.spectral_wavelengths_m());
   for (double w : s.wavelengths_m) {
     if (cfg.pixel_quadrature_nodes > 0) {
       s.pixel_nodes.push_back(int(cfg.pixel_quadrature_nodes));
@@ -36,6 +41,21 @@ PsfSpec make_psf_spec(const OpticsConfig& cfg, const Material& material, torch::
     }
   }
   return s;
+}
+
+std::vector<double> PsfSpec::spectral_wavelengths_m() const {
+  const Quadrature1D q = gauss_legendre(int(spectral_samples));
+  std::vector<double> out;
+  for (double c : wavelengths_m)
+    for (double u : q.nodes) out.push_back(c + (spectral_samples > 1 ? band_width_m * u : 0.0));
+  return out;
+}
+
+std::vector<double> PsfSpec::spectral_weights() const {
+  const Quadrature1D q = gauss_legendre(int(spectral_samples));
+  std::vector<double> out;
+  for (size_t l = 0; l < wavelengths_m.size(); ++l) out.insert(out.end(), q.weights.begin(), q.weights.end());
+  return out;
 }
 
 torch::ScalarType PsfSimulator::complex_dtype() const {
@@ -49,25 +69,48 @@ PsfSimulator::PsfSimulator(PsfSpec spec) : spec_(std::move(spec)) {
   if (s.refractive_index.size() != L || s.pixel_nodes.size() != L)
     throw InputError("PSF: refractive_index and pixel_nodes need one entry per wavelength");
   if (s.psf_size < 1 || s.psf_size % 2 == 0) throw InputError("PSF: psf_size must be odd");
+  if (s.pupil_oversampling < 1) throw InputError("PSF: pupil_oversampling must be >= 1");
+  if (s.pupil_cell_integration != "sinc" && s.pupil_cell_integration != "sinc_cross" &&
+      s.pupil_cell_integration != "midpoint")
+    throw InputError("PSF: pupil_cell_integration must be \"sinc_cross\", \"sinc\" or \"midpoint\"");
+  const bool cell_sinc = s.pupil_cell_integration != "midpoint", cross = s.pupil_cell_integration == "sinc_cross";
+  if (s.spectral_samples < 1) throw InputError("PSF: spectral_samples must be >= 1");
+  const size_t K = size_t(s.spectral_samples);
+  if (K > 1 && !(s.band_width_m > 0.0)) throw InputError("PSF: spectral_samples > 1 needs band_width_m > 0");
+  if (K > 1 && s.spectral_refractive_index.size() != L * K)
+    throw InputError("PSF: spectral_refractive_index needs " + std::to_string(L * K) + " entries (bands x spectral_samples)");
+  node_wavelength_m_ = s.spectral_wavelengths_m();
+  node_weight_ = s.spectral_weights();
+  node_index_ = K > 1 ? s.spectral_refractive_index : s.refractive_index;
   const auto f64 = torch::TensorOptions().dtype(torch::kFloat64).device(s.device);
-  aperture_ = aperture_transmission(s.doe_samples, s.doe_pitch_m, s.aperture_diameter_m, s.aperture_shape).to(f64);
+  aperture_ = aperture_transmission(s.pupil_samples(), s.pupil_pitch_m(), s.aperture_diameter_m, s.aperture_shape).to(f64);
   aperture_energy_ = aperture_.pow(2).sum().item<double>();
   aperture_real_ = aperture_.to(s.real_dtype);
   if (!(aperture_energy_ > 0.0)) throw InputError("PSF: the aperture covers no DOE sample");
-  pupil_x_ = centred_coordinates(s.doe_samples, s.doe_pitch_m).to(f64);
+  pupil_x_ = centred_coordinates(s.pupil_samples(), s.pupil_pitch_m()).to(f64);
   const torch::Tensor pixel_x = centred_coordinates(s.psf_size, s.pixel_pitch_m);  // [P]
   const auto cdt = complex_dtype();
-  for (size_t l = 0; l < L; ++l) {
-    const Quadrature1D q = gauss_legendre(s.pixel_nodes[l]);
+  for (size_t j = 0; j < L * K; ++j) {
+    const Quadrature1D q = gauss_legendre(s.pixel_nodes[j / K]);
     const torch::Tensor nodes = torch::tensor(q.nodes, torch::kFloat64) * s.pixel_pitch_m;    // [n]
     const torch::Tensor sensor_x = (pixel_x.view({-1, 1}) + nodes.view({1, -1})).reshape(-1);  // [P·n], pixel-major
     const torch::Tensor tilt64 =
-        compute_tilt_kernel(sensor_x.to(f64), pupil_x_, s.wavelengths_m[l], s.sensor_distance_m, torch::kComplexDouble);
-    tilt_.push_back(tilt64.to(cdt));
+        compute_tilt_kernel(sensor_x.to(f64), pupil_x_, node_wavelength_m_[j], s.sensor_distance_m, torch::kComplexDouble);
+    // Cell integration (fresnel_mft.h): the tilt's slope k x/s across each cell
+    // gives a factor per sensor point (row): sinc(B) on the main term, B on the
+    // cross term (whose pupil factor goes with the chirps).
+    const torch::Tensor slope = sensor_x.to(f64) * (2.0 * M_PI / node_wavelength_m_[j] / s.sensor_distance_m);
+    const torch::Tensor row0 = cell_sinc ? cell_average_factor(slope, s.pupil_pitch_m()) : torch::ones_like(slope);
+    const torch::Tensor row1 = slope * (0.5 * s.pupil_pitch_m());  // B
+    auto rows = [](const torch::Tensor& m, const torch::Tensor& f) { return m * f.view({-1, 1}).to(m.scalar_type()); };
     if (s.mft_rank_tol > 0.0) {
-      const LowRankKernel k = factor_tilt_kernel(tilt64, s.mft_rank_tol, cdt);
-      left_.push_back(k.left);
-      right_.push_back(k.right);
+      const LowRankKernel k = factor_tilt_kernel(tilt64, s.mft_rank_tol, torch::kComplexDouble);
+      const torch::Tensor left = cross ? torch::cat({rows(k.left, row0), rows(k.left, row1)}, 1) : rows(k.left, row0);
+      left_.push_back(left.to(cdt).contiguous());
+      right_.push_back(k.right.to(cdt).contiguous());
+      tilt_.push_back(torch::Tensor());
+    } else {
+      tilt_.push_back((cross ? torch::stack({rows(tilt64, row0), rows(tilt64, row1)}) : rows(tilt64, row0)).to(cdt));
     }
     const torch::Tensor w = torch::tensor(q.weights, torch::kFloat64);
     weights_.push_back(w.to(torch::TensorOptions().dtype(s.real_dtype).device(s.device)));
@@ -84,6 +127,8 @@ struct BandContext {
   double wavelength_m = 0, refractive_index = 0, sensor_distance_m = 0, pixel_pitch_m = 0, doe_pitch_m = 0,
          aperture_energy = 0;
   int64_t psf_size = 0, nodes = 0;
+  bool cell_sinc = true;  // chirps integrated across each pupil cell (cell_average_factor)
+  bool cross = false;     // plus the cross term: a second kernel term (G = 2)
   c10::ScalarType complex_dtype = torch::kComplexFloat;
   std::vector<double> depths_m;
 
@@ -97,14 +142,14 @@ struct BandContext {
     d["pupil_x"] = pupil_x;
     d["scalars"] = c10::List<double>({wavelength_m, refractive_index, sensor_distance_m, pixel_pitch_m, doe_pitch_m,
                                       aperture_energy});
-    d["ints"] = c10::List<int64_t>({psf_size, nodes, int64_t(complex_dtype)});
+    d["ints"] = c10::List<int64_t>({psf_size, nodes, int64_t(complex_dtype), int64_t(cell_sinc), int64_t(cross)});
     d["depths"] = c10::List<double>(depths_m);
   }
   static BandContext load(torch::autograd::AutogradContext* ctx) {
     auto& d = ctx->saved_data;
     BandContext b;
     b.aperture = d["aperture"].toTensor();
-    b.tilt = d["tilt"].toTensor();
+    if (d["tilt"].isTensor()) b.tilt = d["tilt"].toTensor();
     if (d["left"].isTensor()) b.left = d["left"].toTensor();
     if (d["right"].isTensor()) b.right = d["right"].toTensor();
     b.weights = d["weights"].toTensor();
@@ -113,7 +158,7 @@ struct BandContext {
     b.wavelength_m = sc[0], b.refractive_index = sc[1], b.sensor_distance_m = sc[2], b.pixel_pitch_m = sc[3],
     b.doe_pitch_m = sc[4], b.aperture_energy = sc[5];
     const auto in = d["ints"].toIntVector();
-    b.psf_size = in[0], b.nodes = in[1], b.complex_dtype = c10::ScalarType(in[2]);
+    b.psf_size = in[0], b.nodes = in[1], b.complex_dtype = c10::ScalarType(in[2]), b.cell_sinc = in[3] != 0, b.cross = in[4] != 0;
     b.depths_m = d["depths"].toDoubleVector();
     return b;
   }
@@ -124,8 +169,18 @@ std::pair<torch::Tensor, torch::Tensor> band_psf(const BandContext& b, const tor
   const int64_t P = b.psf_size, n = b.nodes, Z = int64_t(b.depths_m.size());
   const torch::Tensor field = compute_pupil_field(b.aperture, h, b.wavelength_m, b.refractive_index, b.complex_dtype);
   std::vector<torch::Tensor> chirps;
-  for (double z : b.depths_m)
-    chirps.push_back(compute_defocus_chirp(b.pupil_x, b.wavelength_m, z, b.sensor_distance_m, b.complex_dtype));
+  for (double z : b.depths_m) {
+    torch::Tensor c = compute_defocus_chirp(b.pupil_x, b.wavelength_m, z, b.sensor_distance_m, b.complex_dtype);
+    const auto real = c10::toRealValueType(b.complex_dtype);
+    const double k = 2.0 * M_PI / b.wavelength_m, curvature = 1.0 / z + 1.0 / b.sensor_distance_m;
+    const torch::Tensor slope = b.pupil_x * (k * curvature);  // the chirp's slope across each cell
+    if (b.cross) {  // [2, N]: sinc(A) on the main term, −sinc'(A) on the cross term
+      chirps.push_back(torch::stack({c * cell_average_factor(slope, b.doe_pitch_m).to(real),
+                                     c * cell_cross_factor(slope, b.doe_pitch_m).to(real)}));
+    } else {
+      chirps.push_back(b.cell_sinc ? c * cell_average_factor(slope, b.doe_pitch_m).to(real) : c);
+    }
+  }
   // |K_z M K_zᵀ|² with K_z = tilt ⊙ chirp_z: [Z, P·n, P·n]; the kernels are rebuilt in backward, not stored.
   const torch::Tensor I = b.left.defined() ? mft_intensity_low_rank({b.left, b.right}, torch::stack(chirps), field)
                                            : mft_intensity(b.tilt, torch::stack(chirps), field);
@@ -172,43 +227,24 @@ struct RecomputedBand : public torch::autograd::Function<RecomputedBand> {
   }
 };
 
-BandContext make_band_context(const PsfSpec& s, const torch::Tensor& aperture, const torch::Tensor& tilt,
-                              const torch::Tensor& left, const torch::Tensor& right, const torch::Tensor& weights, const torch::Tensor& pupil_x, double aperture_energy,
-                              c10::ScalarType cdt, size_t l, const std::vector<int64_t>& zi) {
-  BandContext b;
-  b.aperture = aperture, b.tilt = tilt, b.left = left, b.right = right, b.weights = weights, b.pupil_x = pupil_x;
-  b.wavelength_m = s.wavelengths_m[l], b.refractive_index = s.refractive_index[l];
-  b.sensor_distance_m = s.sensor_distance_m, b.pixel_pitch_m = s.pixel_pitch_m, b.doe_pitch_m = s.doe_pitch_m;
-  b.aperture_energy = aperture_energy;
-  b.psf_size = s.psf_size, b.nodes = s.pixel_nodes[l], b.complex_dtype = cdt;
-  for (int64_t z : zi) b.depths_m.push_back(s.depths_m[size_t(z)]);
-  return b;
-}
-
-torch::Tensor low_rank(const std::vector<torch::Tensor>& factors, size_t l) {
-  return factors.empty() ? torch::Tensor() : factors[l];
+torch::Tensor low_rank(const std::vector<torch::Tensor>& factors, size_t j) {
+  return factors.empty() ? torch::Tensor() : factors[j];
 }
 
 }  // namespace
 
 std::vector<int64_t> PsfSimulator::kernel_ranks() const {
   std::vector<int64_t> r;
-  for (size_t l = 0; l < tilt_.size(); ++l) r.push_back(left_.empty() ? tilt_[l].size(0) : left_[l].size(1));
+  const int64_t G = spec_.pupil_cell_integration == "sinc_cross" ? 2 : 1;
+  for (size_t j = 0; j < tilt_.size(); ++j) r.push_back(left_.empty() ? tilt_[j].size(-2) : left_[j].size(1) / G);
   return r;
 }
 
-std::pair<torch::Tensor, torch::Tensor> PsfSimulator::compute_band(int64_t band, const torch::Tensor& h,
-                                                                   const std::vector<int64_t>& zi) const {
-  const size_t l = size_t(band);
-  return band_psf(make_band_context(spec_, aperture_real_, tilt_[l], low_rank(left_, l), low_rank(right_, l), weights_[l], pupil_x_, aperture_energy_,
-                                    complex_dtype(), l, zi),
-                  h);
-}
-
 PsfStack PsfSimulator::compute(const torch::Tensor& height_m, const std::vector<int64_t>& depth_indices,
-                               const std::function<void(int64_t)>& on_band) const {
+                               const std::function<void(int64_t)>& on_band,
+                               const std::vector<int64_t>& band_indices) const {
   const auto& s = spec_;
-  const int64_t N = s.doe_samples;
+  const int64_t N = s.doe_samples, k = s.pupil_oversampling, K = s.spectral_samples;
   if (height_m.dim() != 2 || height_m.size(0) != N || height_m.size(1) != N)
     throw InputError("PSF: height map must be [" + std::to_string(N) + ", " + std::to_string(N) + "], got " +
                      c10::str(height_m.sizes()));
@@ -217,21 +253,45 @@ PsfStack PsfSimulator::compute(const torch::Tensor& height_m, const std::vector<
     for (int64_t z = 0; z < int64_t(s.depths_m.size()); ++z) zi.push_back(z);
   for (int64_t z : zi)
     if (z < 0 || z >= int64_t(s.depths_m.size())) throw InputError("PSF: depth index out of range");
-  const torch::Tensor h = height_m.to(s.device);
-  check_finite(h, "DOE height map (input of the PSF simulator)");
+  std::vector<int64_t> li = band_indices;
+  if (li.empty())
+    for (int64_t l = 0; l < int64_t(s.wavelengths_m.size()); ++l) li.push_back(l);
+  for (int64_t l : li)
+    if (l < 0 || l >= int64_t(s.wavelengths_m.size())) throw InputError("PSF: band index out of range");
+  check_finite(height_m, "DOE height map (input of the PSF simulator)");
+  // Each DOE cell of constant height covers k×k pupil samples (differentiable copy).
+  const torch::Tensor h = k == 1 ? height_m.to(s.device)
+                                 : height_m.to(s.device).repeat_interleave(k, 0).repeat_interleave(k, 1);
   const bool checkpoint = s.recompute_in_backward && h.requires_grad() && torch::GradMode::is_enabled();
 
+  BandContext b;
+  b.aperture = aperture_real_, b.pupil_x = pupil_x_;
+  b.sensor_distance_m = s.sensor_distance_m, b.pixel_pitch_m = s.pixel_pitch_m, b.doe_pitch_m = s.pupil_pitch_m();
+  b.aperture_energy = aperture_energy_, b.psf_size = s.psf_size, b.complex_dtype = complex_dtype();
+  b.cell_sinc = s.pupil_cell_integration != "midpoint";
+  b.cross = s.pupil_cell_integration == "sinc_cross";
+  for (int64_t z : zi) b.depths_m.push_back(s.depths_m[size_t(z)]);
+
   std::vector<torch::Tensor> psfs, energies;
-  for (int64_t l = 0; l < int64_t(s.wavelengths_m.size()); ++l) {
+  for (int64_t l : li) {
     torch::Tensor psf, energy;
-    if (checkpoint) {
-      const auto r = RecomputedBand::apply(h, make_band_context(spec_, aperture_real_, tilt_[size_t(l)], low_rank(left_, size_t(l)),
-                                                                low_rank(right_, size_t(l)), weights_[size_t(l)],
-                                                                pupil_x_, aperture_energy_, complex_dtype(), size_t(l), zi));
-      psf = r[0];
-      energy = r[1];
-    } else {
-      std::tie(psf, energy) = compute_band(l, h, zi);
+    for (int64_t q = 0; q < K; ++q) {
+      const size_t j = size_t(l * K + q);
+      b.tilt = tilt_[j], b.left = low_rank(left_, j), b.right = low_rank(right_, j), b.weights = weights_[j];
+      b.wavelength_m = node_wavelength_m_[j], b.refractive_index = node_index_[j], b.nodes = s.pixel_nodes[size_t(l)];
+      torch::Tensor p, e;
+      if (checkpoint) {
+        const auto r = RecomputedBand::apply(h, b);
+        p = r[0], e = r[1];
+      } else {
+        std::tie(p, e) = band_psf(b, h);
+      }
+      if (K == 1) {
+        psf = p, energy = e;
+      } else {  // Σ_k w_k P(λ_k): each term sums to 1, so does the band's PSF
+        psf = q == 0 ? p * node_weight_[j] : psf + p * node_weight_[j];
+        energy = q == 0 ? e * node_weight_[j] : energy + e * node_weight_[j];
+      }
     }
     psfs.push_back(psf);
     energies.push_back(energy);

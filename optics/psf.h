@@ -42,6 +42,27 @@ struct PsfSpec {
   // Relative singular-value cut of the low-rank tilt kernels (fresnel_mft.h);
   // 0 = the exact matrix Fourier transform.
   double mft_rank_tol = 1e-6;
+  // Pupil sub-samples per DOE cell and axis (k): the height map stays [N, N];
+  // each cell of constant height is evaluated at k×k points of pitch δ/k.
+  int64_t pupil_oversampling = 1;
+  // How each pupil cell is integrated (fresnel_mft.h, cell_average_factor):
+  // "sinc_cross" integrates the linear part of the smooth phases across the
+  // cell including the cross term (two kernel terms), "sinc" without it (one
+  // term), "midpoint" takes their value at the cell centre.
+  std::string pupil_cell_integration = "sinc_cross";
+  // Wavelengths per band (K): Gauss–Legendre nodes λ_c + w·u_k across the band of
+  // width band_width_m (flat spectrum inside it); the band's PSF is Σ_k w_k P(λ_k).
+  // K = 1 is the band centre. spectral_refractive_index holds η at the L·K
+  // nodes, band-major (make_psf_spec fills it from the material).
+  int64_t spectral_samples = 1;
+  double band_width_m = 0.0;
+  std::vector<double> spectral_refractive_index;
+
+  int64_t pupil_samples() const { return doe_samples * pupil_oversampling; }   // N·k
+  double pupil_pitch_m() const { return doe_pitch_m / double(pupil_oversampling); }  // δ/k
+  // The L·K wavelengths and weights of the spectral quadrature, band-major.
+  std::vector<double> spectral_wavelengths_m() const;
+  std::vector<double> spectral_weights() const;
 };
 
 // Builds the spec from the config: indices from the material (warns outside its
@@ -61,16 +82,15 @@ class PsfSimulator {
   // height_m: [N, N] metres (float32 or float64; may require grad).
   // depth_indices: which of spec.depths_m to compute (empty = all), in that order.
   // on_band: called after each wavelength (for progress output).
+  // band_indices: which bands to compute (empty = all), in that order; the
+  // result's first axis follows it.
   PsfStack compute(const torch::Tensor& height_m, const std::vector<int64_t>& depth_indices = {},
-                   const std::function<void(int64_t)>& on_band = {}) const;
-
-  // One band: normalised PSFs [Z', P, P] and energy_in_window [Z'] (no grad).
-  std::pair<torch::Tensor, torch::Tensor> compute_band(int64_t band, const torch::Tensor& height_m,
-                                                       const std::vector<int64_t>& depth_indices) const;
+                   const std::function<void(int64_t)>& on_band = {},
+                   const std::vector<int64_t>& band_indices = {}) const;
 
   const PsfSpec& spec() const { return spec_; }
   const torch::Tensor& aperture() const { return aperture_; }  // float64 [N, N]
-  // Rank kept for each band's tilt kernel (its row count M when exact).
+  // Rank kept for each spectral node's tilt kernel (its row count M when exact), [L·K].
   std::vector<int64_t> kernel_ranks() const;
   torch::ScalarType complex_dtype() const;
 
@@ -78,10 +98,12 @@ class PsfSimulator {
   PsfSpec spec_;
   torch::Tensor aperture_;              // float64 [N, N] on device
   torch::Tensor aperture_real_;         // the same in the compute dtype (shared by every band)
-  torch::Tensor pupil_x_;               // float64 [N]
-  std::vector<torch::Tensor> tilt_;     // per band: complex [P·n_l, N] (exact path)
-  std::vector<torch::Tensor> left_, right_;  // per band: low-rank factors of tilt_ (if mft_rank_tol > 0)
-  std::vector<torch::Tensor> weights_;  // per band: real [n_l], Gauss-Legendre weights on [0, 1]
+  torch::Tensor pupil_x_;               // float64 [N·k]
+  // Per spectral node j = l·K + k (band l, sub-wavelength k):
+  std::vector<double> node_wavelength_m_, node_index_, node_weight_;
+  std::vector<torch::Tensor> tilt_;     // complex [P·n_l, N·k] (exact path)
+  std::vector<torch::Tensor> left_, right_;  // low-rank factors of tilt_ (if mft_rank_tol > 0)
+  std::vector<torch::Tensor> weights_;  // real [n_l], pixel Gauss-Legendre weights, sum 1
   double aperture_energy_ = 0.0;        // Σ A² (δ² units)
 };
 

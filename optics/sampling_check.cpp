@@ -20,9 +20,9 @@ SamplingReport check_sampling(const PsfSpec& spec, const torch::Tensor& energy_i
   SamplingReport r;
   const int64_t L = int64_t(spec.wavelengths_m.size()), Z = int64_t(spec.depths_m.size());
   r.max_phase_step_rad = torch::zeros({L, Z}, torch::kFloat64);
-  const double delta = spec.doe_pitch_m, s = spec.sensor_distance_m;
+  const double delta = spec.pupil_pitch_m(), s = spec.sensor_distance_m;  // δ/k with pupil oversampling
   // Largest |ξ| of a lit sample along an axis: the aperture's half width (plus the edge cell).
-  const double half_width = std::min(0.5 * spec.aperture_diameter_m + 0.5 * delta, 0.5 * double(spec.doe_samples) * delta);
+  const double half_width = std::min(0.5 * spec.aperture_diameter_m + 0.5 * delta, 0.5 * double(spec.pupil_samples()) * delta);
   const double window_edge = 0.5 * double(spec.psf_size) * spec.pixel_pitch_m;
   auto acc = r.max_phase_step_rad.accessor<double, 2>();
   for (int64_t l = 0; l < L; ++l) {
@@ -34,14 +34,14 @@ SamplingReport check_sampling(const PsfSpec& spec, const torch::Tensor& energy_i
       acc[l][z] = step;
       if (step > M_PI)
         r.warnings.push_back(fmt("pupil undersampled at lambda = %.0f nm, z = %.4g m: phase step %.2f rad between "
-                                 "neighbouring DOE samples (> pi); reduce optics.doe_pitch_m or raise the depth",
+                                 "neighbouring pupil samples (> pi); raise optics.pupil_oversampling",
                                  lam * 1e9, spec.depths_m[size_t(z)], step));
     }
     const double period = lam * s / (delta * spec.pixel_pitch_m);
     r.period_pixels.push_back(period);
     if (period < double(spec.psf_size))
       r.warnings.push_back(fmt("DOE grid aliasing at lambda = %.0f nm: the sampled pupil repeats the PSF every %.1f "
-                               "pixels, less than the %.0f-pixel window; reduce optics.doe_pitch_m",
+                               "pixels, less than the %.0f-pixel window; raise optics.pupil_oversampling",
                                lam * 1e9, period, double(spec.psf_size)));
   }
   if (energy_in_window.defined()) {

@@ -21,22 +21,107 @@ SensorModel make_sensor_model(const SensorConfig& cfg, const PsfSpec& spec, doub
   return m;
 }
 
+std::vector<int64_t> needed_bands(const torch::Tensor& radiance, const torch::Tensor& omega, double band_tol) {
+  const int64_t L = radiance.size(1), C = omega.size(0);
+  const torch::Tensor om = omega.detach().abs().to(torch::kFloat64).cpu();                         // [C, L]
+  const torch::Tensor rad = radiance.detach().abs().to(torch::kFloat64);
+  const torch::Tensor peak = rad.amax({0, 2, 3}).cpu(), mean = rad.mean({0, 2, 3}).cpu();           // [L]
+  const torch::Tensor budget = (om * mean.view({1, L})).sum(1) * band_tol;                          // [C]
+  const torch::Tensor bound = om * peak.view({1, L});                                               // [C, L]
+  // Darkest bands first (by their largest channel bound); stop at the first that does not fit.
+  const torch::Tensor order = std::get<1>(bound.amax(0).sort());
+  torch::Tensor used = torch::zeros({C}, torch::kFloat64);
+  std::vector<bool> dark(size_t(L), false);
+  for (int64_t i = 0; i < L; ++i) {
+    const int64_t l = order[i].item<int64_t>();
+    const torch::Tensor next = used + bound.select(1, l);
+    if (!(next <= budget).all().item<bool>()) break;
+    used = next;
+    dark[size_t(l)] = true;
+  }
+  std::vector<int64_t> bands;
+  for (int64_t l = 0; l < L; ++l)
+    if (!dark[size_t(l)]) bands.push_back(l);
+  return bands;
+}
+
+int64_t psf_support_window(const torch::Tensor& psf, double tol) {
+  const int64_t P = psf.size(-1), c = P / 2;
+  const torch::Tensor p = psf.detach().to(torch::kFloat64).cpu().reshape({-1, P * P});  // [LZ, P²]
+  const torch::Tensor i = torch::arange(P, torch::kInt64) - c;
+  const torch::Tensor ring = torch::max(i.abs().view({P, 1}), i.abs().view({1, P})).reshape({1, P * P});  // Chebyshev radius
+  const torch::Tensor by_ring = torch::zeros({p.size(0), c + 1}, torch::kFloat64).scatter_add_(1, ring.expand_as(p), p);
+  const torch::Tensor total = by_ring.sum(1, true).clamp_min(1e-300);
+  const torch::Tensor outside = (total - by_ring.cumsum(1)) / total;  // [LZ, c+1]: light beyond radius d
+  const torch::Tensor worst = outside.amax(0);
+  for (int64_t d = 0; d <= c; ++d)
+    if (worst[d].item<double>() <= tol) return 2 * d + 1;
+  return P;
+}
+
 SensorImage simulate_sensor(const PsfSimulator& psf_sim, const SensorModel& model, const torch::Tensor& height_m,
                             const torch::Tensor& radiance, const torch::Tensor& depth_m,
-                            c10::optional<at::Generator> generator) {
+                            c10::optional<at::Generator> generator, const LeaveOut& leave) {
   const auto& spec = psf_sim.spec();
-  if (radiance.dim() != 4 || radiance.size(1) != int64_t(spec.wavelengths_m.size()))
-    throw InputError("radiance must be [B, " + std::to_string(spec.wavelengths_m.size()) + ", H, W], got " +
-                     c10::str(radiance.sizes()));
+  const int64_t L = int64_t(spec.wavelengths_m.size());
+  if (radiance.dim() != 4 || radiance.size(1) != L)
+    throw InputError("radiance must be [B, " + std::to_string(L) + ", H, W], got " + c10::str(radiance.sizes()));
   check_finite(radiance, "scene radiance");
+  const int64_t B = radiance.size(0), H = radiance.size(2), W = radiance.size(3), r = spec.psf_size / 2;
+  // Work only where used pixels need it: their bounding box plus the reach of
+  // the PSF and of the mask blur (those pixels are then exact).
+  int64_t y0 = 0, y1 = H, x0 = 0, x1 = W;
+  if (leave.valid.defined()) {
+    if (leave.valid.dim() != 4 || leave.valid.size(0) != B || leave.valid.size(1) != 1 || leave.valid.size(2) != H ||
+        leave.valid.size(3) != W)
+      throw InputError("valid map must be [B, 1, H, W] like the radiance, got " + c10::str(leave.valid.sizes()));
+    const torch::Tensor v = (leave.valid.detach() > 0.5).cpu();
+    const torch::Tensor rows = v.any(3).any(1).any(0).nonzero(), cols = v.any(2).any(1).any(0).nonzero();
+    if (rows.numel() > 0) {
+      const int64_t blur = model.mask_sigma_px > 0 ? std::max<int64_t>(1, int64_t(std::ceil(3.0 * model.mask_sigma_px))) : 0;
+      const int64_t margin = r + blur + 1;
+      y0 = std::max<int64_t>(0, rows.min().item<int64_t>() - margin), y1 = std::min(H, rows.max().item<int64_t>() + 1 + margin);
+      x0 = std::max<int64_t>(0, cols.min().item<int64_t>() - margin), x1 = std::min(W, cols.max().item<int64_t>() + 1 + margin);
+    }
+  }
+  const torch::Tensor rad = radiance.narrow(2, y0, y1 - y0).narrow(3, x0, x1 - x0);
+  const torch::Tensor dep = depth_m.narrow(2, y0, y1 - y0).narrow(3, x0, x1 - x0);
+
   SensorImage out;
-  out.layers = occupied_layers(depth_m, spec.depths_m);
+  if (leave.layers) {
+    out.layers = occupied_layers(dep, spec.depths_m);
+  } else {
+    for (int64_t z = 0; z < int64_t(spec.depths_m.size()); ++z) out.layers.push_back(z);
+  }
+  if (leave.bands) {
+    out.bands = needed_bands(rad, model.omega, leave.band_tol);
+  } else {
+    for (int64_t l = 0; l < L; ++l) out.bands.push_back(l);
+  }
   std::vector<double> layer_depths;
   for (int64_t z : out.layers) layer_depths.push_back(spec.depths_m[size_t(z)]);
-  out.psf = psf_sim.compute(height_m, out.layers).psf.to(radiance.scalar_type());
-  const torch::Tensor masks = layer_masks(depth_m.to(radiance.scalar_type()), layer_depths, model.mask_sigma_px);
-  out.clean = model.occlusion ? render_sensor_image_occlusion(radiance, masks, out.psf, model.omega, layer_depths)
-                              : render_sensor_image(radiance, masks, out.psf, model.omega);
+  const auto dt = radiance.scalar_type();
+  const torch::Tensor masks = layer_masks(dep.to(dt), layer_depths, model.mask_sigma_px);
+  torch::Tensor clean;
+  if (out.bands.empty()) {
+    out.psf = torch::zeros({L, int64_t(out.layers.size()), spec.psf_size, spec.psf_size}, radiance.options());
+    clean = torch::zeros({B, 3, y1 - y0, x1 - x0}, radiance.options()) * height_m.sum().to(dt);  // keeps the graph
+  } else {
+    torch::Tensor psf = psf_sim.compute(height_m, out.layers, {}, out.bands).psf.to(dt);  // [L', Z', P, P]
+    const bool grad = height_m.requires_grad() && torch::GradMode::is_enabled();
+    if (leave.psf_crop_tol > 0.0 && !grad) {
+      const int64_t w = psf_support_window(psf, leave.psf_crop_tol), o = (spec.psf_size - w) / 2;
+      if (w < spec.psf_size) psf = psf.narrow(2, o, w).narrow(3, o, w);
+    }
+    const torch::Tensor bi = torch::tensor(out.bands, torch::kInt64).to(radiance.device());
+    const torch::Tensor rb = rad.index_select(1, bi), ob = model.omega.to(dt).index_select(1, bi);
+    clean = model.occlusion ? render_sensor_image_occlusion(rb, masks, psf, ob, layer_depths)
+                            : render_sensor_image(rb, masks, psf, ob);
+    out.psf = torch::zeros({L, psf.size(1), psf.size(2), psf.size(3)}, psf.options()).index_copy(0, bi, psf);
+  }
+  if (y0 != 0 || x0 != 0 || y1 != H || x1 != W)
+    clean = torch::constant_pad_nd(clean, {x0, W - x1, y0, H - y1}, 0.0);
+  out.clean = clean;
   out.image = apply_sensor_noise(out.clean, model.noise, generator);
   check_finite(out.image, "sensor image");
   return out;

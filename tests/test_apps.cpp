@@ -234,6 +234,51 @@ TEST_CASE("hsd_bench sim --json reports the contract's keys", "[app][bench]") {
   CHECK(run("hsd_bench sim --psf 8").code == 2);
 }
 
+TEST_CASE("hsd_bench accuracy writes the error-vs-runtime table, plot, leave-out table and summary", "[app][bench]") {
+  const fs::path dir = fs::temp_directory_path() / "hsd_test_accuracy";
+  fs::remove_all(dir);
+  const Run r = run("hsd_bench accuracy --config configs/tiny.json --patch 32 --repeats 1 --threads 2 --ref-oversampling 2 "
+                    "--out " + dir.string());
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  std::ifstream csv(dir / "error_vs_runtime.csv");
+  std::string header, line;
+  std::getline(csv, header);
+  for (const char* k : {"name", "seconds", "psf_rel_l1_max", "psf_rel_l1_mean", "sensor_psnr_db"})
+    CHECK(header.find(k) != std::string::npos);
+  std::map<std::string, double> err;  // name -> psf_rel_l1_max (6th column)
+  while (std::getline(csv, line)) {
+    std::vector<std::string> f;
+    std::string cell;
+    bool quoted = false;
+    for (char ch : line) {
+      if (ch == '"') quoted = !quoted;
+      else if (ch == ',' && !quoted) f.push_back(cell), cell.clear();
+      else cell += ch;
+    }
+    f.push_back(cell);
+    REQUIRE(f.size() >= 6);
+    err[f[0]] = std::stod(f[5]);
+    CHECK(std::isfinite(std::stod(f[3])));
+  }
+  REQUIRE(err.count("default"));
+  CHECK(err.size() >= 15);
+  for (const auto& [name, e] : err) CHECK(std::isfinite(e));
+  // A finer pupil moves toward the reference; point-sampled pixels and the FFT method away from it.
+  CHECK(err["pupil_x2"] < err["default"]);
+  CHECK(err["spectral_3_pupil_x2"] < err["default"]);
+  CHECK(err["nodes_1"] > err["default"]);
+  CHECK(err["fft_bilinear"] > err["exact_mft"]);
+  CHECK(std::fabs(err["rank_tol_1e-08"] - err["exact_mft"]) < 1e-6);
+  CHECK(fs::file_size(dir / "error_vs_runtime.png") > 1000);
+  CHECK(fs::exists(dir / "leave_out.csv"));
+  std::ifstream md(dir / "accuracy.md");
+  const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
+  CHECK(text.find("Pareto") != std::string::npos);
+  CHECK(text.find("Recommendations") != std::string::npos);
+  CHECK(run("hsd_bench accuracy --config configs/tiny.json").code == 2);  // --out missing
+}
+
 TEST_CASE("hsd_scenes writes a deterministic dataset with manifest, previews and the ColorChecker", "[app][data]") {
   const fs::path base = fs::temp_directory_path() / "hsd_test_scenes";
   fs::remove_all(base);

@@ -45,7 +45,7 @@ TEST_CASE("paper defaults meet the PSF accuracy target", "[psf][accuracy]") {
     INFO(init << ": point-sampled pixels: mean " << point_err.mean().item<double>() << ", worst "
               << point_err.max().item<double>());
     CHECK(point_err.max().item<double>() > worst);
-    CHECK(point_err.max().item<double>() > 0.03);
+    CHECK((point_err.mean().item<double>() > 0.01 || point_err.max().item<double>() > 0.03));  // misses the target
   }
 }
 
@@ -56,6 +56,7 @@ TEST_CASE("low-rank window kernels match the exact MFT and keep far fewer ranks 
   auto spec = optics::make_psf_spec(cfg.optics, material, torch::kCPU);
   spec.real_dtype = torch::kFloat64;
   spec.wavelengths_m = {420e-9, 540e-9, 660e-9};
+  spec.spectral_samples = 1;
   spec.refractive_index = material.indices(spec.wavelengths_m);
   spec.pixel_nodes = {3, 3, 2};
   auto exact_spec = spec;

@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "helpers.h"
+#include "optics/aperture.h"
 #include "optics/doe.h"
 #include "optics/pixel_quadrature.h"
 
@@ -34,6 +35,9 @@ TEST_CASE("in-focus Fresnel DOE gives the Airy pattern", "[psf][closed-form]") {
   const double lambda = 550e-9, s = 0.05, z0 = 1.0, D = 2.0e-3, p = 1e-6, delta = 8e-6;
   const int64_t N = 256, P = 61;
   auto spec = test::make_spec({lambda}, {z0}, N, delta, D, P, p, s, 4);
+  // Cell-centre sampling is exact for an ideal, continuous lens (its total phase
+  // is constant); the pixelated element (sinc cells) is checked below.
+  spec.pupil_cell_integration = "midpoint";
   const optics::PsfSimulator sim(spec);
   const torch::Tensor h = optics::fresnel_height(N, delta, lambda, 1.5, z0, s);
   const auto out = sim.compute(h);
@@ -52,6 +56,31 @@ TEST_CASE("in-focus Fresnel DOE gives the Airy pattern", "[psf][closed-form]") {
   INFO("Strehl ratio: " << strehl);
   CHECK(strehl >= 0.9);
   CHECK(strehl <= 1.01);
+
+  // The same lens as cells of constant height (8 µm): inside each cell the
+  // source and propagation phases keep their local ramp of slope k(1/z + 1/s)ξ,
+  // which the cell cannot follow, so each cell's amplitude falls to
+  // sinc(k(1/z + 1/s)ξδ/2)·sinc(k(1/z + 1/s)ηδ/2) and the peak to
+  // Airy · [Σ A sinc sinc / Σ A]² (the staircase lens's efficiency).
+  {
+    auto cells = spec;
+    cells.pupil_cell_integration = "sinc";
+    const auto o = optics::PsfSimulator(cells).compute(h);
+    const double peak = (o.psf[0][0] * o.energy_in_window[0][0])[P / 2][P / 2].item<double>();
+    const torch::Tensor x = optics::centred_coordinates(N, delta);
+    const double slope = 2 * M_PI / lambda * (1.0 / z0 + 1.0 / s);
+    const torch::Tensor u = x * slope * delta / 2;
+    const torch::Tensor sx = torch::sin(u) / u;
+    const torch::Tensor A = optics::aperture_transmission(N, delta, D, "circle");
+    const double eff = ((A * torch::outer(sx, sx)).sum() / A.sum()).item<double>();
+    const double predicted = ia[P / 2][P / 2] * eff * eff;
+    INFO("pixelated lens: peak " << peak << ", predicted " << predicted << " (cell efficiency " << eff << ")");
+    CHECK(eff < 0.97);  // a visible effect at this pitch
+    CHECK(peak == Approx(predicted).epsilon(0.01));
+    cells.pupil_cell_integration = "sinc_cross";  // the cross term vanishes on the axis
+    const auto oc = optics::PsfSimulator(cells).compute(h);
+    CHECK((oc.psf[0][0] * oc.energy_in_window[0][0])[P / 2][P / 2].item<double>() == Approx(predicted).epsilon(0.01));
+  }
 
   // First dark ring at 1.22 λ s / D along the central row (and column).
   const double r1_px = 1.22 * lambda * s / D / p;  // 16.8 pixels
@@ -137,6 +166,7 @@ TEST_CASE("Parseval: a window holding a whole period gets all the light", "[psf]
   for (const char* shape : {"circle", "square"}) {
     auto spec = test::make_spec({lambda}, {0.3, 1.0, 1e6}, N, delta, 0.3e-3, P, p, s, 8);
     spec.aperture_shape = shape;
+    spec.pupil_cell_integration = "midpoint";  // Parseval of the discrete transform
     const auto e = optics::PsfSimulator(spec).compute(h).energy_in_window;
     INFO(shape << ": energy in window " << e);
     CHECK(((e - 1.0).abs().max()).item<double>() < 1e-9);

@@ -139,3 +139,28 @@ TEST_CASE("train: checkpoint then resume equals an uninterrupted run", "[train]"
   train::Trainer other(tiny_training((dir / "data").string(), {"model.base_width=6"}));
   CHECK_THROWS_WITH(other.load_checkpoint((dir / "ck.pt").string()), Catch::Contains("ck.pt"));
 }
+
+TEST_CASE("train: an exploding learning rate is refused or stopped by the NaN guard, naming the step", "[train][stiff]") {
+  const std::string root = (fs::temp_directory_path() / "hsd_test_train_explode").string();
+  // An absurd learning rate is refused at the config, naming the key.
+  CHECK_THROWS_WITH(tiny_training(root, {"train.lr_net=1e30"}), Catch::Contains("train.lr_net"));
+  // The largest allowed one, without normalisation or clipping: Adam's steps are
+  // bounded by the learning rate, so the run stays finite...
+  train::Trainer t(tiny_training(root, {"train.lr_net=0.9", "train.clip_grad_norm=0", "model.norm=none"}));
+  const train::Batch b = fixed_batch(3);
+  for (int k = 0; k < 15; ++k) CHECK(std::isfinite(t.step(b, k).loss));
+  // ...and once a weight has blown up, the guard stops the run with a message naming the step.
+  {
+    torch::NoGradGuard ng;
+    t.net()->parameters()[0].view(-1)[0] = std::numeric_limits<float>::infinity();
+  }
+  std::string message;
+  try {
+    t.step(b, 15);
+  } catch (const NumericalError& e) {
+    message = e.what();
+  }
+  INFO(message);
+  CHECK(message.find("step 15") != std::string::npos);
+  CHECK(message.find("NaN or Inf") != std::string::npos);
+}

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -59,6 +60,86 @@ void write_line_plot(const std::string& path, const std::string& title, const st
     cv::putText(img, s.name, cv::Point(W - right + 35, legend_y), cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
     legend_y += 18;
   }
+  std::vector<uchar> out;
+  if (!cv::imencode(".png", img, out)) input_error(path, "PNG encoding failed");
+  write_binary_file(path, std::vector<char>(out.begin(), out.end()));
+}
+
+std::vector<size_t> pareto_front(const std::vector<LabelledPoint>& points) {
+  std::vector<size_t> order;
+  for (size_t i = 0; i < points.size(); ++i)
+    if (std::isfinite(points[i].x) && std::isfinite(points[i].y)) order.push_back(i);
+  std::sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+    return points[a].x != points[b].x ? points[a].x < points[b].x : points[a].y < points[b].y;
+  });
+  std::vector<size_t> front;
+  double best = std::numeric_limits<double>::infinity();
+  for (size_t i : order)
+    if (points[i].y < best) {
+      front.push_back(i);
+      best = points[i].y;
+    }
+  return front;
+}
+
+void write_pareto_plot(const std::string& path, const std::string& title, const std::string& x_label,
+                       const std::string& y_label, const std::vector<LabelledPoint>& points,
+                       const std::string& highlight, double y_line) {
+  const int W = 860, H = 520, left = 80, right = 30, top = 34, bottom = 50;
+  cv::Mat img(H, W, CV_8UC3, cv::Scalar(255, 255, 255));
+  double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
+  for (const auto& p : points)
+    if (p.x > 0 && p.y > 0 && std::isfinite(p.x) && std::isfinite(p.y)) {
+      x0 = std::min(x0, std::log10(p.x)), x1 = std::max(x1, std::log10(p.x));
+      y0 = std::min(y0, std::log10(p.y)), y1 = std::max(y1, std::log10(p.y));
+    }
+  if (y_line > 0) y0 = std::min(y0, std::log10(y_line)), y1 = std::max(y1, std::log10(y_line));
+  if (x0 > x1) x0 = -1, x1 = 0, y0 = -1, y1 = 0;
+  x0 = std::floor(x0 * 4) / 4 - 0.05, x1 = std::ceil(x1 * 4) / 4 + 0.05;
+  y0 = std::floor(y0) - 0.1, y1 = std::ceil(y1) + 0.1;
+  auto px = [&](double x) { return left + int((std::log10(x) - x0) / (x1 - x0) * (W - left - right)); };
+  auto py = [&](double y) { return H - bottom - int((std::log10(y) - y0) / (y1 - y0) * (H - top - bottom)); };
+  const cv::Scalar black(0, 0, 0), grey(225, 225, 225);
+  cv::rectangle(img, cv::Point(left, top), cv::Point(W - right, H - bottom), black, 1);
+  char buf[64];
+  for (int e = int(std::ceil(y0)); e <= int(std::floor(y1)); ++e) {  // decades of y
+    const double v = std::pow(10.0, e);
+    cv::line(img, cv::Point(left, py(v)), cv::Point(W - right, py(v)), grey, 1);
+    std::snprintf(buf, sizeof buf, "1e%d", e);
+    cv::putText(img, buf, cv::Point(8, py(v) + 4), cv::FONT_HERSHEY_SIMPLEX, 0.42, black, 1, cv::LINE_AA);
+  }
+  for (int k = 0; k <= 5; ++k) {  // x ticks, log spaced
+    const double v = std::pow(10.0, x0 + (x1 - x0) * k / 5.0);
+    std::snprintf(buf, sizeof buf, "%.3g", v);
+    cv::line(img, cv::Point(px(v), top), cv::Point(px(v), H - bottom), grey, 1);
+    cv::putText(img, buf, cv::Point(px(v) - 14, H - bottom + 18), cv::FONT_HERSHEY_SIMPLEX, 0.42, black, 1, cv::LINE_AA);
+  }
+  if (y_line > 0) {
+    for (int x = left; x < W - right; x += 12)
+      cv::line(img, cv::Point(x, py(y_line)), cv::Point(std::min(x + 6, W - right), py(y_line)), cv::Scalar(0, 0, 200), 1);
+    std::snprintf(buf, sizeof buf, "%.3g", y_line);
+    cv::putText(img, buf, cv::Point(W - right - 40, py(y_line) - 4), cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 200), 1, cv::LINE_AA);
+  }
+  const auto front = pareto_front(points);
+  std::vector<cv::Point> line;
+  for (size_t i : front)
+    if (points[i].x > 0 && points[i].y > 0) line.emplace_back(px(points[i].x), py(points[i].y));
+  if (line.size() > 1) cv::polylines(img, line, false, cv::Scalar(60, 160, 60), 2, cv::LINE_AA);
+  for (size_t i = 0; i < points.size(); ++i) {
+    const auto& p = points[i];
+    if (!(p.x > 0 && p.y > 0 && std::isfinite(p.x) && std::isfinite(p.y))) continue;
+    const bool on_front = std::find(front.begin(), front.end(), i) != front.end();
+    const bool hl = p.label == highlight;
+    const cv::Scalar c = hl ? cv::Scalar(0, 0, 220) : on_front ? cv::Scalar(40, 140, 40) : cv::Scalar(150, 90, 30);
+    cv::circle(img, cv::Point(px(p.x), py(p.y)), hl ? 6 : 4, c, -1, cv::LINE_AA);
+    cv::putText(img, p.label, cv::Point(px(p.x) + 7, py(p.y) - 5 + int(i % 2) * 14), cv::FONT_HERSHEY_SIMPLEX, 0.38, c, 1,
+                cv::LINE_AA);
+  }
+  cv::putText(img, title, cv::Point(left, 22), cv::FONT_HERSHEY_SIMPLEX, 0.5, black, 1, cv::LINE_AA);
+  cv::putText(img, x_label, cv::Point((W + left) / 2 - 60, H - 12), cv::FONT_HERSHEY_SIMPLEX, 0.45, black, 1, cv::LINE_AA);
+  cv::putText(img, y_label, cv::Point(left + 6, top + 16), cv::FONT_HERSHEY_SIMPLEX, 0.42, black, 1, cv::LINE_AA);
+  cv::putText(img, "green line: Pareto front; red: default", cv::Point(W - right - 300, top + 16), cv::FONT_HERSHEY_SIMPLEX,
+              0.4, black, 1, cv::LINE_AA);
   std::vector<uchar> out;
   if (!cv::imencode(".png", img, out)) input_error(path, "PNG encoding failed");
   write_binary_file(path, std::vector<char>(out.begin(), out.end()));

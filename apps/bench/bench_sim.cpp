@@ -43,10 +43,13 @@ struct FloorWork {
     nh = optics::fast_fft_size(patch + 2 * r);
     const auto c = torch::TensorOptions().dtype(torch::kComplexFloat);
     field = torch::randn({N, N}, c);
+    // With the cross term of the cell integration the low-rank kernels carry G = 2 terms.
+    const int64_t G = spec.pupil_cell_integration == "sinc_cross" ? 2 : 1;
     for (size_t l = 0; l < ranks.size(); ++l) {
-      const int64_t M = P * spec.pixel_nodes[l];
-      kernels.push_back(torch::randn({layers, ranks[l], N}, c));
-      lefts.push_back(ranks[l] < M ? torch::randn({M, ranks[l]}, c) : torch::Tensor());
+      const int64_t M = P * spec.pixel_nodes[l / size_t(spec.spectral_samples)];
+      const bool low = ranks[l] < M;
+      kernels.push_back(torch::randn({layers, low ? G * ranks[l] : M, N}, c));
+      lefts.push_back(low ? torch::randn({M, G * ranks[l]}, c) : torch::Tensor());
     }
     image = torch::randn({1, L, nh, nh});
     psf = torch::randn({L * layers * P, P}, c);     // the PSFs (as complex, as the method casts them)
@@ -107,6 +110,8 @@ int bench_sim(Config cfg, const AppArgs& args, BenchOutput& out) {
   o.doe_samples = pupil;
   o.doe_pitch_m = grid / double(pupil);
   o.psf_size = psf;
+  // The baseline's model: one PSF at each band centre (hsd_bench accuracy measures spectral samples).
+  o.spectral_samples = 1;
 
   const auto material = optics::Material::load(o.material);
   const auto spec = optics::make_psf_spec(o, material, torch::kCPU);

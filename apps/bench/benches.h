@@ -17,5 +17,6 @@ int bench_sim(Config cfg, const AppArgs& args, BenchOutput& out);
 int bench_data(Config cfg, const AppArgs& args, BenchOutput& out);
 int bench_train(Config cfg, const AppArgs& args, BenchOutput& out);
 int bench_reconstruct(Config cfg, const AppArgs& args, BenchOutput& out);
+int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out);
 
 }  // namespace hsd::bench
