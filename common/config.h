@@ -38,13 +38,13 @@ struct OpticsConfig {
   int64_t doe_samples = 512;           // DOE samples across the (square) grid
   std::string material = "fused_silica_malitson1965";  // key in data/spectra/refractive_index_materials.json
   int64_t pixel_quadrature_nodes = 0;  // Gauss-Legendre nodes per pixel and axis; 0 = auto per wavelength
-  double pixel_quadrature_tol = 1e-2;  // per-Fourier-component bound of the auto rule (optics/pixel_quadrature.h)
+  double pixel_quadrature_tol = 1e-1;  // per-Fourier-component bound of the auto rule (optics/pixel_quadrature.h)
   std::string precision = "float32";   // "float32" | "float64" (phases are always built in float64)
   // "store": autograd keeps every band's intermediates (fastest); "recompute":
   // keep only the height map and recompute each band in the backward pass (lean).
   std::string psf_backward = "store";
   // Relative singular-value cut of the low-rank window kernels (optics/fresnel_mft.h); 0 = exact MFT.
-  double mft_rank_tol = 1e-6;
+  double mft_rank_tol = 1e-4;
   // Sub-samples of the pupil per DOE cell and axis: each cell of constant height
   // is evaluated at k×k points (1 = one point per cell).
   int64_t pupil_oversampling = 1;

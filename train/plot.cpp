@@ -125,15 +125,42 @@ void write_pareto_plot(const std::string& path, const std::string& title, const 
   for (size_t i : front)
     if (points[i].x > 0 && points[i].y > 0) line.emplace_back(px(points[i].x), py(points[i].y));
   if (line.size() > 1) cv::polylines(img, line, false, cv::Scalar(60, 160, 60), 2, cv::LINE_AA);
-  for (size_t i = 0; i < points.size(); ++i) {
+  // Points first, then labels placed greedily where they overlap nothing placed
+  // before (front and default first); a label with no free place is left out
+  // (the CSV has every setting).
+  std::vector<size_t> order;
+  for (size_t i = 0; i < points.size(); ++i) order.push_back(i);
+  auto rank = [&](size_t i) {
+    return points[i].label == highlight ? 0 : std::find(front.begin(), front.end(), i) != front.end() ? 1 : 2;
+  };
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) { return rank(a) < rank(b); });
+  std::vector<cv::Rect> taken;
+  for (size_t i : order) {
     const auto& p = points[i];
     if (!(p.x > 0 && p.y > 0 && std::isfinite(p.x) && std::isfinite(p.y))) continue;
-    const bool on_front = std::find(front.begin(), front.end(), i) != front.end();
+    taken.emplace_back(px(p.x) - 5, py(p.y) - 5, 11, 11);
+  }
+  for (size_t i : order) {
+    const auto& p = points[i];
+    if (!(p.x > 0 && p.y > 0 && std::isfinite(p.x) && std::isfinite(p.y))) continue;
     const bool hl = p.label == highlight;
-    const cv::Scalar c = hl ? cv::Scalar(0, 0, 220) : on_front ? cv::Scalar(40, 140, 40) : cv::Scalar(150, 90, 30);
+    const cv::Scalar c = hl ? cv::Scalar(0, 0, 220) : rank(i) == 1 ? cv::Scalar(40, 140, 40) : cv::Scalar(150, 90, 30);
     cv::circle(img, cv::Point(px(p.x), py(p.y)), hl ? 6 : 4, c, -1, cv::LINE_AA);
-    cv::putText(img, p.label, cv::Point(px(p.x) + 7, py(p.y) - 5 + int(i % 2) * 14), cv::FONT_HERSHEY_SIMPLEX, 0.38, c, 1,
-                cv::LINE_AA);
+    int base = 0;
+    const cv::Size ts = cv::getTextSize(p.label, cv::FONT_HERSHEY_SIMPLEX, 0.38, 1, &base);
+    const int X = px(p.x), Y = py(p.y);
+    for (const auto& off : std::vector<cv::Point>{{8, -6}, {8, 14}, {-ts.width - 8, -6}, {-ts.width - 8, 14}, {8, -20},
+                                                  {8, 28}, {-ts.width - 8, -20}, {-ts.width - 8, 28}, {-ts.width / 2, -14},
+                                                  {-ts.width / 2, 24}, {8, -34}, {8, 42}}) {
+      const cv::Rect box(X + off.x, Y + off.y - ts.height, ts.width, ts.height + base);
+      if (box.x < left || box.x + box.width > W - right || box.y < top || box.y + box.height > H - bottom) continue;
+      bool free = true;
+      for (const auto& t : taken) free &= (box & t).area() == 0;
+      if (!free) continue;
+      cv::putText(img, p.label, cv::Point(X + off.x, Y + off.y), cv::FONT_HERSHEY_SIMPLEX, 0.38, c, 1, cv::LINE_AA);
+      taken.push_back(box);
+      break;
+    }
   }
   cv::putText(img, title, cv::Point(left, 22), cv::FONT_HERSHEY_SIMPLEX, 0.5, black, 1, cv::LINE_AA);
   cv::putText(img, x_label, cv::Point((W + left) / 2 - 60, H - 12), cv::FONT_HERSHEY_SIMPLEX, 0.45, black, 1, cv::LINE_AA);

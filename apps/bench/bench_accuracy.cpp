@@ -24,6 +24,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <memory>
 
 #include <torch/torch.h>
 
@@ -167,15 +168,16 @@ int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out) {
   for (int n : {1, 2, 3, 4})
     add("nodes_" + std::to_string(n), "pixel nodes per axis", std::to_string(n),
         [n](optics::PsfSpec& s) { s.pixel_nodes.assign(s.pixel_nodes.size(), n); });
-  for (double tol : {1e-1, 1e-3}) {
+  for (double tol : {1e-1, 1e-2, 1e-3}) {
+    if (tol == cfg.optics.pixel_quadrature_tol && cfg.optics.pixel_quadrature_nodes == 0) continue;
     add("quadrature_tol_" + fmt("%.0e", tol), "pixel_quadrature_tol", fmt("%.0e", tol), [tol](optics::PsfSpec& s) {
       for (size_t l = 0; l < s.wavelengths_m.size(); ++l)
         s.pixel_nodes[l] = optics::choose_pixel_nodes(
             optics::intensity_cycles_per_pixel(s.aperture_diameter_m, s.pixel_pitch_m, s.wavelengths_m[l], s.sensor_distance_m), tol);
     });
   }
-  for (double tol : {1e-3, 1e-4, 1e-8})
-    add("rank_tol_" + fmt("%.0e", tol), "mft_rank_tol", fmt("%.0e", tol), [tol](optics::PsfSpec& s) { s.mft_rank_tol = tol; });
+  for (double tol : {1e-3, 1e-4, 1e-6, 1e-8})
+    if (tol != base.mft_rank_tol) add("rank_tol_" + fmt("%.0e", tol), "mft_rank_tol", fmt("%.0e", tol), [tol](optics::PsfSpec& s) { s.mft_rank_tol = tol; });
   add("exact_mft", "mft_rank_tol", "0 (exact MFT)", [](optics::PsfSpec& s) { s.mft_rank_tol = 0.0; });
   add("pupil_x2", "pupil_oversampling", "2", [](optics::PsfSpec& s) { s.pupil_oversampling = 2; });
   for (const char* rule : {"midpoint", "sinc", "sinc_cross"})
@@ -241,33 +243,42 @@ int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out) {
 
   // Leave-out: the same scene with and without skipping unneeded work.
   struct LeaveOut {
-    std::string name, what;
+    std::string name, what, left_out;
     double seconds_full = 0, seconds_lean = 0, rel_err = 0;
   };
   std::vector<LeaveOut> lo;
   {
     log::info("leave-out measurements ...");
     const optics::PsfSimulator sim(base);
+    // forward+backward (backward = true) or forward only without a graph
     auto time_sim = [&](const optics::SensorModel& m, const torch::Tensor& rad, const torch::Tensor& dep,
-                        const optics::LeaveOut& leave, torch::Tensor* image) {
+                        const optics::LeaveOut& leave, torch::Tensor* image, optics::SensorImage* info, bool backward) {
       auto run = [&] {
-        torch::Tensor h = h0.clone().set_requires_grad(true);
+        std::unique_ptr<torch::NoGradGuard> ng;
+        if (!backward) ng = std::make_unique<torch::NoGradGuard>();
+        torch::Tensor h = h0.clone().set_requires_grad(backward);
         const auto img = optics::simulate_sensor(sim, m, h, rad, dep, c10::nullopt, leave);
-        (img.clean * gw.to(img.clean.scalar_type())).sum().backward();
+        if (backward) (img.clean * gw.to(img.clean.scalar_type())).sum().backward();
         if (image) *image = img.clean.detach();
+        if (info) *info = img;
       };
       return median_seconds(run, repeats);
     };
     auto compare = [&](const std::string& name, const std::string& what, const optics::SensorModel& m,
                        const torch::Tensor& rad, const torch::Tensor& dep, optics::LeaveOut lean,
-                       const torch::Tensor& valid = torch::Tensor()) {
+                       const torch::Tensor& valid = torch::Tensor(), bool backward = true) {
       optics::LeaveOut none;
       none.layers = none.bands = false;
-      none.band_tol = 0.0;
+      none.band_tol = none.psf_crop_tol = 0.0;
+      if (!backward) lean.psf_crop_tol = std::max(lean.psf_crop_tol, 1e-7);
       torch::Tensor a, b;
+      optics::SensorImage info;
       LeaveOut e{name, what};
-      e.seconds_full = time_sim(m, rad, dep, none, &a);
-      e.seconds_lean = time_sim(m, rad, dep, lean, &b);
+      e.seconds_full = time_sim(m, rad, dep, none, &a, nullptr, backward);
+      e.seconds_lean = time_sim(m, rad, dep, lean, &b, &info, backward);
+      e.left_out = std::to_string(L - int64_t(info.bands.size())) + "/" + std::to_string(L) + " bands, " +
+                   std::to_string(Z - int64_t(info.layers.size())) + "/" + std::to_string(Z) + " layers, window " +
+                   std::to_string(info.psf.size(-1)) + "/" + std::to_string(P) + " px";
       torch::Tensor d = (a - b).abs();
       if (valid.defined()) d = d * valid;
       e.rel_err = d.max().item<double>() / std::max(a.abs().max().item<double>(), 1e-30);
@@ -282,7 +293,7 @@ int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out) {
     // (2) a narrow-band illuminant: bands whose contribution bound is below tol
     const torch::Tensor led = optics::illuminant_bands("LED-RGB1", base.wavelengths_m, base.band_width_m);
     const torch::Tensor rad_led = (scene.spectral * led.view({-1, 1, 1})).narrow(1, 0, patch).narrow(2, 0, patch).unsqueeze(0).contiguous();
-    for (double tol : {1e-6, 1e-3}) {
+    for (double tol : {1e-7, 1e-2}) {
       optics::LeaveOut t = dflt;
       t.band_tol = tol;
       compare("dark_bands_tol_" + fmt("%.0e", tol), "LED-RGB1 light: dark bands skipped, contribution bound " + fmt("%.0e", tol),
@@ -299,6 +310,9 @@ int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out) {
     masked.valid = valid;
     compare("masked_region", "only a quarter of the patch valid: rendered on its bounding box plus the PSF reach", sensor,
             radiance, depth, masked, valid);
+    // (5) forward only (simulation, evaluation): PSF pixels holding < 1e-7 of the light cropped
+    compare("psf_crop_forward", "forward only, no gradient: PSFs cropped to the window holding all but 1e-7 of the light",
+            sensor, radiance, depth, dflt, torch::Tensor(), false);
   }
 
   // Outputs.
@@ -311,11 +325,11 @@ int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out) {
     csv += buf;
   }
   write_text_file(args.out_dir + "/error_vs_runtime.csv", csv);
-  std::string lcsv = "name,seconds_full,seconds_leave_out,speedup,max_rel_diff,what\n";
+  std::string lcsv = "name,seconds_full,seconds_leave_out,speedup,max_rel_diff,left_out,what\n";
   for (const auto& e : lo) {
     char buf[512];
-    std::snprintf(buf, sizeof buf, "%s,%.5g,%.5g,%.3f,%.3e,\"%s\"\n", e.name.c_str(), e.seconds_full, e.seconds_lean,
-                  e.seconds_full / e.seconds_lean, e.rel_err, e.what.c_str());
+    std::snprintf(buf, sizeof buf, "%s,%.5g,%.5g,%.3f,%.3e,\"%s\",\"%s\"\n", e.name.c_str(), e.seconds_full, e.seconds_lean,
+                  e.seconds_full / e.seconds_lean, e.rel_err, e.left_out.c_str(), e.what.c_str());
     lcsv += buf;
   }
   write_text_file(args.out_dir + "/leave_out.csv", lcsv);
@@ -339,7 +353,7 @@ int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out) {
   for (const auto& r : rows)
     if (r.seconds <= 2.0 * def.seconds && (!best_within_2x || r.rel_l1_max < best_within_2x->rel_l1_max)) best_within_2x = &r;
   std::string md = "# Simulator accuracy against run time\n\n";
-  md += "Config: " + args.config_path + "; " + std::to_string(L) + " of its " + std::to_string(bands_all) +
+  md += "Config: " + (args.config_path.empty() ? std::string("configs/paper.json") : args.config_path) + "; " + std::to_string(L) + " of its " + std::to_string(bands_all) +
         " bands (band stride " + std::to_string(stride) + ", band width " + fmt("%.3g", band_width_nm) + " nm), " +
         std::to_string(Z) + " depths, " + std::to_string(P) + "-pixel window, " + std::to_string(base.doe_samples) +
         "^2 DOE samples; test scene " + std::to_string(patch) + "x" + std::to_string(patch) + " px on " +
@@ -372,14 +386,15 @@ int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out) {
   for (size_t i : front) md += " `" + rows[i].s.name + "`";
   md += ".\n- The window rows also lose light: their error includes the energy outside the smaller window; "
         "`energy_in_window_min` is the smallest fraction of the aperture's light any (lambda, z) window holds.\n";
-  md += "\n## Leaving out what a scene does not need\n\n| case | full [s] | leave-out [s] | speed-up | max rel. difference | what |\n|---|---|---|---|---|---|\n";
+  md += "\n## Leaving out what a scene does not need\n\n| case | full [s] | leave-out [s] | speed-up | max rel. difference | left out | what |\n|---|---|---|---|---|---|---|\n";
   for (const auto& e : lo) {
-    char buf[512];
-    std::snprintf(buf, sizeof buf, "| %s | %.3f | %.3f | %.2fx | %.1e | %s |\n", e.name.c_str(), e.seconds_full,
-                  e.seconds_lean, e.seconds_full / e.seconds_lean, e.rel_err, e.what.c_str());
+    char buf[768];
+    std::snprintf(buf, sizeof buf, "| %s | %.3f | %.3f | %.2fx | %.1e | %s | %s |\n", e.name.c_str(), e.seconds_full,
+                  e.seconds_lean, e.seconds_full / e.seconds_lean, e.rel_err, e.left_out.c_str(), e.what.c_str());
     md += buf;
   }
-  md += "\n(forward+backward of PSF + sensor image; difference relative to the full image's maximum, over valid pixels.)\n";
+  md += "\n(forward+backward of PSF + sensor image unless said otherwise; difference relative to the full image's maximum, "
+        "over valid pixels; leave-out keeps the defaults: band bound 1e-7, PSF crop 1e-7 without a gradient.)\n";
   write_text_file(args.out_dir + "/accuracy.md", md);
 
   out.json = Json{{"bench", "accuracy"}, {"threads", threads}, {"bands", L}, {"depths", Z}, {"psf_size", P},
