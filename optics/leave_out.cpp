@@ -5,19 +5,21 @@
 namespace hsd::optics {
 
 std::vector<int64_t> needed_bands(const torch::Tensor& radiance, const torch::Tensor& omega, double band_tol) {
-  const int64_t L = radiance.size(1), C = omega.size(0);
-  const torch::Tensor om = omega.detach().abs().to(torch::kFloat64).cpu();                         // [C, L]
+  const int64_t B = radiance.size(0), L = radiance.size(1), C = omega.size(0);
+  const torch::Tensor om = omega.detach().abs().to(torch::kFloat64).cpu().view({1, C, L});        // [1, C, L]
   const torch::Tensor rad = radiance.detach().abs().to(torch::kFloat64);
-  const torch::Tensor peak = rad.amax({0, 2, 3}).cpu(), mean = rad.mean({0, 2, 3}).cpu();           // [L]
-  const torch::Tensor budget = (om * mean.view({1, L})).sum(1) * band_tol;                          // [C]
-  const torch::Tensor bound = om * peak.view({1, L});                                               // [C, L]
-  // Darkest bands first (by their largest channel bound); stop at the first that does not fit.
-  const torch::Tensor order = std::get<1>(bound.amax(0).sort());
-  torch::Tensor used = torch::zeros({C}, torch::kFloat64);
+  const torch::Tensor peak = rad.amax({2, 3}).cpu().view({B, 1, L});                              // per image
+  const torch::Tensor mean = rad.mean({2, 3}).cpu().view({B, 1, L});
+  const torch::Tensor budget = (om * mean).sum(2) * band_tol;                                      // [B, C]
+  const torch::Tensor bound = om * peak;                                                           // [B, C, L]
+  // Darkest bands first (by their largest bound over images and channels); stop
+  // at the first that does not fit every image's and channel's budget.
+  const torch::Tensor order = std::get<1>(bound.amax({0, 1}).sort());
+  torch::Tensor used = torch::zeros({B, C}, torch::kFloat64);
   std::vector<bool> dark(size_t(L), false);
   for (int64_t i = 0; i < L; ++i) {
     const int64_t l = order[i].item<int64_t>();
-    const torch::Tensor next = used + bound.select(1, l);
+    const torch::Tensor next = used + bound.select(2, l);
     if (!(next <= budget).all().item<bool>()) break;
     used = next;
     dark[size_t(l)] = true;

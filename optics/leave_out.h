@@ -13,10 +13,11 @@ namespace hsd::optics {
 struct LeaveOut {
   bool layers = true;        // depth layers no pixel occupies: no PSFs, no convolutions (exact)
   bool bands = true;         // bands the camera does not see or the scene does not emit
-  // Dark bands, darkest first, while for every channel c
-  //   Σ_{l dark} Ω_c,l · max_pixels I_l ≤ band_tol · Σ_l Ω_c,l · mean_pixels I_l:
-  // since each PSF sums to 1 and the masks to 1, leaving them out moves no pixel
-  // of channel c by more than band_tol times its mean signal. 0 = exact zeros only.
+  // Dark bands, darkest first, while for every image b and channel c
+  //   Σ_{l dark} Ω_c,l · max_pixels I_b,l ≤ band_tol · Σ_l Ω_c,l · mean_pixels I_b,l:
+  // since each PSF sums to at most 1 and the masks to 1, leaving them out moves
+  // no pixel of image b, channel c by more than band_tol times that image's mean
+  // signal in c. 0 = exact zeros only.
   double band_tol = 1e-7;
   // Without a gradient to the height map: crop the PSFs to the smallest odd
   // window whose outside holds at most psf_crop_tol of every (λ, z) PSF's light
@@ -28,8 +29,8 @@ struct LeaveOut {
   torch::Tensor valid;
 };
 
-// Bands to compute: those with a response and emission above the LeaveOut rule
-// (sorted). radiance [B, L, H, W], omega [3, L].
+// Bands to compute: all but the dark ones of the LeaveOut rule (sorted).
+// radiance [B, L, H, W], omega [C, L].
 std::vector<int64_t> needed_bands(const torch::Tensor& radiance, const torch::Tensor& omega, double band_tol);
 
 // Smallest odd window (≤ P) holding all but `tol` of the light of every PSF in

@@ -8,6 +8,8 @@
 //    element's design, not a sampling error.)
 //  * DOE-grid period: the sampled pupil repeats the PSF every λs/δ on the sensor;
 //    that period must exceed the window;
+//  * the tilt's phase ramp across a cell at the window edge, B = πPpδ/(2λs),
+//    must stay small for the cross term of the cell integration (warn > 0.5);
 //  * energy_in_window below a threshold: the window misses light.
 // Each problem becomes one warning naming (λ, z) and the numbers.
 #pragma once

@@ -29,6 +29,7 @@ SensorImage simulate_sensor(const PsfSimulator& psf_sim, const SensorModel& mode
   if (radiance.dim() != 4 || radiance.size(1) != L)
     throw InputError("radiance must be [B, " + std::to_string(L) + ", H, W], got " + c10::str(radiance.sizes()));
   check_finite(radiance, "scene radiance");
+  check_finite(height_m, "DOE height map (input of the sensor simulation)");
   const int64_t B = radiance.size(0), H = radiance.size(2), W = radiance.size(3), r = spec.psf_size / 2;
   // Work only where used pixels need it: their bounding box plus the reach of
   // the PSF and of the mask blur (those pixels are then exact).
@@ -39,12 +40,21 @@ SensorImage simulate_sensor(const PsfSimulator& psf_sim, const SensorModel& mode
       throw InputError("valid map must be [B, 1, H, W] like the radiance, got " + c10::str(leave.valid.sizes()));
     const torch::Tensor v = (leave.valid.detach() > 0.5).cpu();
     const torch::Tensor rows = v.any(3).any(1).any(0).nonzero(), cols = v.any(2).any(1).any(0).nonzero();
-    if (rows.numel() > 0) {
+    if (rows.numel() == 0) {  // no pixel is used: nothing to render
+      y0 = y1 = x0 = x1 = 0;
+    } else {
       const int64_t blur = model.mask_sigma_px > 0 ? std::max<int64_t>(1, int64_t(std::ceil(3.0 * model.mask_sigma_px))) : 0;
       const int64_t margin = r + blur + 1;
       y0 = std::max<int64_t>(0, rows.min().item<int64_t>() - margin), y1 = std::min(H, rows.max().item<int64_t>() + 1 + margin);
       x0 = std::max<int64_t>(0, cols.min().item<int64_t>() - margin), x1 = std::min(W, cols.max().item<int64_t>() + 1 + margin);
     }
+  }
+  if (y1 == y0 || x1 == x0) {
+    SensorImage out;
+    out.clean = torch::zeros({B, 3, H, W}, radiance.options()) * height_m.sum().to(radiance.scalar_type());  // keeps the graph
+    out.image = apply_sensor_noise(out.clean, model.noise, generator);
+    out.psf = torch::zeros({int64_t(spec.wavelengths_m.size()), 0, spec.psf_size, spec.psf_size}, radiance.options());
+    return out;
   }
   const torch::Tensor rad = radiance.narrow(2, y0, y1 - y0).narrow(3, x0, x1 - x0);
   const torch::Tensor dep = depth_m.narrow(2, y0, y1 - y0).narrow(3, x0, x1 - x0);

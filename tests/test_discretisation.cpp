@@ -52,9 +52,12 @@ TEST_CASE("pupil oversampling converges and sinc cell integration beats the midp
   exact.mft_rank_tol = 0.0;
   const torch::Tensor a = optics::PsfSimulator(exact).compute(h).psf, b = optics::PsfSimulator(spec).compute(h).psf;
   CHECK(rel_l1_max(b, a) < 1e-5);
-  // The oversampled grid is the same element: a flat DOE gives the same PSF at any k
-  // up to the discretisation, and the height map stays [N, N].
-  CHECK(run(3, "sinc").sizes() == ref.sizes());
+  // The reference does not favour the rule it was made with: the midpoint rule
+  // at twice its oversampling lands on it, far below the errors compared above.
+  const double mid16 = rel_l1_max(run(16, "midpoint"), ref);
+  INFO("midpoint x16 vs the sinc_cross x8 reference: " << mid16);
+  CHECK(mid16 < 0.25 * cross2);
+  CHECK(run(3, "sinc").sizes() == ref.sizes());  // the height map stays [N, N] at any k
   // The sampling check uses the sub-sample pitch.
   auto s1 = spec;
   const auto r1 = optics::check_sampling(s1, torch::Tensor(), 0.0);
@@ -192,17 +195,39 @@ TEST_CASE("leave-out: skipped layers, bands, PSF pixels and masked regions equal
     const auto t = sim_img(dim, depth, tol);
     CHECK(t.bands == std::vector<int64_t>{1, 2, 3, 4});
     const auto f = sim_img(dim, depth, all);
-    CHECK((t.clean - f.clean).abs().max().item<double>() <= 1e-6 * f.clean.mean().item<double>());
+    // per image and channel: within the bound times that image's mean signal in that channel
+    const torch::Tensor diff = (t.clean - f.clean).abs().amax({2, 3}), mean = f.clean.mean({2, 3});
+    CHECK((diff <= 1e-6 * mean).all().item<bool>());
   }
-  SECTION("PSF pixels with negligible light, without a gradient") {
-    const int64_t w = optics::psf_support_window(sim.compute(c.h).psf, 1e-7);
+  SECTION("PSF pixels with little light, without a gradient") {
+    // Diffraction tails hold more than 1e-7 of the light in any small window
+    // (the default never crops these PSFs); a coarser bound does crop a
+    // window that is large for the PSF (20-µm pixels, 21-px window).
+    CHECK(optics::psf_support_window(sim.compute(c.h).psf, 1e-7) == c.spec.psf_size);
+    auto wide = c.spec;
+    wide.pixel_pitch_m = 20e-6;
+    wide.psf_size = 21;
+    const optics::PsfSimulator wsim(wide);
+    const double tol = 0.1;
+    const int64_t w = optics::psf_support_window(wsim.compute(c.h).psf, tol);
     INFO("support window " << w);
-    CHECK(w <= c.spec.psf_size);
+    REQUIRE(w < wide.psf_size);
     optics::LeaveOut crop;
-    crop.psf_crop_tol = 1e-7;
-    const auto lean = sim_img(rad, depth, crop);
+    crop.psf_crop_tol = tol;
+    torch::NoGradGuard ng;
+    const auto lean = optics::simulate_sensor(wsim, c.model, c.h, rad, depth, c10::nullopt, crop);
+    const auto full = optics::simulate_sensor(wsim, c.model, c.h, rad, depth, c10::nullopt, all);
     CHECK(lean.psf.size(2) == w);
-    CHECK(rel_diff(lean.clean, sim_img(rad, depth, all).clean) <= 1e-6);
+    // each PSF loses at most tol of its light: no pixel moves by more than tol · max I · Σ_λ Ω_c,λ
+    const double bound = tol * rad.max().item<double>() * c.model.omega.sum(1).max().item<double>();
+    CHECK((lean.clean - full.clean).abs().max().item<double>() <= bound);
+    CHECK((lean.clean - full.clean).abs().max().item<double>() > 0.0);  // it did change something
+  }
+  SECTION("with a gradient to the height map nothing is cropped") {
+    optics::LeaveOut crop;
+    crop.psf_crop_tol = 0.5;
+    torch::Tensor h = c.h.clone().set_requires_grad(true);
+    CHECK(optics::simulate_sensor(sim, c.model, h, rad, depth, c10::nullopt, crop).psf.size(2) == c.spec.psf_size);
   }
   SECTION("masked-out regions") {
     torch::Tensor valid = torch::zeros({2, 1, H, W}, torch::kFloat64);
@@ -212,6 +237,16 @@ TEST_CASE("leave-out: skipped layers, bands, PSF pixels and masked regions equal
     const auto lean = sim_img(rad, depth, masked), full = sim_img(rad, depth, all);
     CHECK(((lean.clean - full.clean).abs() * valid).max().item<double>() <= 1e-6 * full.clean.abs().max().item<double>());
     CHECK(lean.clean.narrow(2, 0, 5).abs().max().item<double>() == 0.0);  // far from the valid pixels: not computed
+    // occlusion compositing needs the PSF reach of the blurred alphas too
+    optics::SensorModel occ = c.model;
+    occ.occlusion = true;
+    torch::NoGradGuard ng;
+    const auto lo = optics::simulate_sensor(sim, occ, c.h, rad, depth, c10::nullopt, masked);
+    const auto fo = optics::simulate_sensor(sim, occ, c.h, rad, depth, c10::nullopt, all);
+    CHECK(((lo.clean - fo.clean).abs() * valid).max().item<double>() <= 1e-6 * fo.clean.abs().max().item<double>());
+    // no valid pixel: nothing rendered
+    masked.valid = torch::zeros_like(valid);
+    CHECK(sim_img(rad, depth, masked).clean.abs().max().item<double>() == 0.0);
   }
 }
 
