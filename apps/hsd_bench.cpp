@@ -25,8 +25,14 @@ const char* kUsage =
     "  NAME: data  the data path: scene generation, loading with 1 and N threads,\n"
     "              the patch sampler and patch extraction (--scenes 8)\n"
     "  NAME: train seconds per training step and peak memory (--patch 256 --batch 1)\n"
-    "  NAME: reconstruct  seconds per megapixel of the exported reconstructor in tiles\n"
-    "              (--size 1024 --tile 512 --overlap 64)\n"
+    "  NAME: reconstruct  seconds per megapixel of the exported reconstructor in tiles,\n"
+    "              float32 and bfloat16 (--size 1024 --tile 1024 --overlap 64)\n"
+    "  NAME: accuracy --out DIR  error against run time of the simulator's knobs\n"
+    "              (precision, pixel nodes, low-rank cut, pupil oversampling, cell\n"
+    "              integration, spectral samples, window, FFT method) against a\n"
+    "              converged float64 reference, and what leaving out unneeded work\n"
+    "              saves: error_vs_runtime.csv/.png, leave_out.csv, accuracy.md\n"
+    "              (--patch 128 --band-stride 3 --ref-oversampling 4 --ref-spectral 5)\n"
     "  --config defaults to configs/paper.json of the source tree.\n"
     "  --json prints exactly one JSON object on stdout.";
 

@@ -61,7 +61,10 @@ torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
     << "        B = image.size(0)\n        C = image.size(1)\n        H = image.size(2)\n        W = image.size(3)\n"
     << "        ph = (" << mult << " - H % " << mult << ") % " << mult << "\n"
     << "        pw = (" << mult << " - W % " << mult << ") % " << mult << "\n"
-    << "        x = image\n"
+    // The network runs in the dtype of its weights (float32 as exported; bfloat16
+    // after set_reconstructor_precision), in the input's memory format (`to`
+    // keeps it; run_reconstructor passes channels-last); the outputs are float32.
+    << "        x = image.to(self.p_head_hs_weight.dtype)\n"
     << "        if ph > 0 or pw > 0:\n"
     << "            if ph < H and pw < W:\n"
     << "                x = torch.reflection_pad2d(x, [0, pw, 0, ph])\n"
@@ -87,10 +90,10 @@ torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
   }
   o << "        hs = torch.conv2d(y_hs, self.p_head_hs_weight, self.p_head_hs_bias, [1, 1], [0, 0], [1, 1], 1)\n"
     << "        d = torch.sigmoid(torch.conv2d(y_depth, self.p_head_depth_weight, self.p_head_depth_bias, [1, 1], [0, 0], [1, 1], 1))\n"
-    << "        hs = hs[:, :, 0:H, 0:W]\n"
-    << "        d = d[:, :, 0:H, 0:W]\n"
+    << "        hs = hs[:, :, 0:H, 0:W].float().contiguous()\n"
+    << "        d = d[:, :, 0:H, 0:W].float().contiguous()\n"
     << "        Lb = self.p_upsampling_weights.size(0)\n"
-    << "        up = torch.mm(self.p_upsampling_weights, image.permute([1, 0, 2, 3]).reshape([C, B * H * W]))\n"
+    << "        up = torch.mm(self.p_upsampling_weights.float(), image.float().permute([1, 0, 2, 3]).reshape([C, B * H * W]))\n"
     << "        hs = hs + up.reshape([Lb, B, H, W]).permute([1, 0, 2, 3])\n"
     << "        inv_far = 1.0 / " << c10::str(opt.depth_max_m) << "\n"
     << "        inv_near = 1.0 / " << c10::str(opt.depth_min_m) << "\n"
@@ -99,6 +102,20 @@ torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
   m.define(o.str());
   m.eval();
   return m;
+}
+
+void set_reconstructor_precision(torch::jit::Module& m, c10::ScalarType dtype) {
+  if (dtype != torch::kFloat32 && dtype != torch::kBFloat16)
+    throw InputError("reconstructor precision must be float32 or bfloat16");
+  torch::NoGradGuard ng;
+  auto convert = [&](const std::string& name, torch::Tensor t) {
+    if (name.find("upsampling") != std::string::npos || !t.is_floating_point()) return;  // the residual stays float32
+    torch::Tensor v = t.detach().to(dtype);
+    if (v.dim() == 4) v = v.contiguous(at::MemoryFormat::ChannelsLast);
+    t.set_data(v);
+  };
+  for (const auto& p : m.named_parameters(false)) convert(p.name, p.value);
+  for (const auto& b : m.named_buffers(false)) convert(b.name, b.value);
 }
 
 torch::jit::Module load_reconstructor(const std::string& path) {
@@ -116,7 +133,8 @@ torch::jit::Module load_reconstructor(const std::string& path) {
 }
 
 std::pair<torch::Tensor, torch::Tensor> run_reconstructor(torch::jit::Module& m, const torch::Tensor& x) {
-  const auto out = m.forward({x}).toTuple();
+  // channels-last: oneDNN's convolutions run about 1.3x faster than in NCHW
+  const auto out = m.forward({x.dim() == 4 ? x.contiguous(at::MemoryFormat::ChannelsLast) : x}).toTuple();
   return {out->elements()[0].toTensor(), out->elements()[1].toTensor()};
 }
 

@@ -8,6 +8,7 @@
 
 #include <torch/script.h>
 
+#include "common/error.h"
 #include "common/tensor_io.h"
 #include "model/tiled_inference.h"
 #include "model/torchscript_export.h"
@@ -87,4 +88,30 @@ TEST_CASE("export: tiled reconstruction equals the whole frame's", "[export]") {
   INFO("relative differences: cube " << e_hs << ", depth " << e_d);
   CHECK(e_hs < 1e-4);
   CHECK(e_d < 1e-4);
+}
+
+TEST_CASE("export: bfloat16 inference keeps float32 outputs close to float32", "[export]") {
+  torch::manual_seed(7);
+  model::NetOptions o;
+  o.bands = 5, o.base_width = 8, o.levels = 2, o.norm = "batch";
+  model::HsdNet net(o, torch::rand({5, 3}));
+  net->eval();
+  torch::jit::Module m32 = model::export_torchscript(net, {{400e-9, 450e-9, 500e-9, 550e-9, 600e-9}, {}});
+  torch::jit::Module m16 = m32.clone();
+  model::set_reconstructor_precision(m32, torch::kFloat32);  // channels-last weights, same values
+  model::set_reconstructor_precision(m16, torch::kBFloat16);
+  torch::NoGradGuard ng;
+  const torch::Tensor x = torch::rand({1, 3, 40, 36});
+  const model::NetOutput ref = net->forward(x);
+  const auto [hs32, d32] = model::run_reconstructor(m32, x);
+  const auto [hs16, d16] = model::run_reconstructor(m16, x);
+  CHECK((hs32 - ref.hs).abs().max().item<double>() <= 1e-5 * ref.hs.abs().max().item<double>());
+  REQUIRE(hs16.scalar_type() == torch::kFloat32);
+  REQUIRE(d16.scalar_type() == torch::kFloat32);
+  const double rel = ((hs16 - ref.hs).abs().mean() / ref.hs.abs().mean()).item<double>();
+  INFO("bfloat16 vs float32: cube mean relative difference " << rel);
+  CHECK(rel < 2e-2);
+  CHECK(rel > 0.0);  // it did run in bfloat16
+  CHECK((d16 - ref.depth_m).abs().max().item<double>() < 0.05);
+  CHECK_THROWS_AS(model::set_reconstructor_precision(m16, torch::kHalf), InputError);
 }
