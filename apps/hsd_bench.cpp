@@ -26,7 +26,7 @@ const char* kUsage =
     "              the patch sampler and patch extraction (--scenes 8)\n"
     "  NAME: train seconds per training step and peak memory (--patch 256 --batch 1)\n"
     "  NAME: reconstruct  seconds per megapixel of the exported reconstructor in tiles,\n"
-    "              float32 and bfloat16 (--size 1024 --tile 1024 --overlap 64)\n"
+    "              float32 and bfloat16 (--size 2048 --tile 512 --overlap 32)\n"
     "  NAME: accuracy --out DIR  error against run time of the simulator's knobs\n"
     "              (precision, pixel nodes, low-rank cut, pupil oversampling, cell\n"
     "              integration, spectral samples, window, FFT method) against a\n"

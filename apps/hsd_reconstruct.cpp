@@ -26,7 +26,7 @@ using namespace hsd;
 namespace {
 
 const char* kUsage =
-    "hsd_reconstruct --model reconstructor.pt --input IMAGE [--tile 1024 --overlap 64]\n"
+    "hsd_reconstruct --model reconstructor.pt --input IMAGE [--tile 512 --overlap 32]\n"
     "                [--precision float32|bfloat16] --out DIR\n"
     "  IMAGE: linear RGB OpenEXR (channels R, G, B) or 8/16-bit PNG (sRGB, decoded\n"
     "  to linear). Writes DIR/hs.exr (S0.<nm> channels), DIR/depth.exr (Z, metres),\n"
@@ -56,43 +56,54 @@ int run(const AppArgs& args) {
   const std::string model_path = args.option("--model", ""), input = args.option("--input", "");
   if (model_path.empty()) input_error("--model", "required (DIR/reconstructor.pt from hsd_export)");
   if (input.empty()) input_error("--input", "required (a linear RGB EXR or an sRGB PNG)");
-  const int64_t tile = args.integer("--tile", 1024), overlap = args.integer("--overlap", 64);
+  const int64_t tile = args.integer("--tile", 512), overlap = args.integer("--overlap", 32);
   const std::string precision = args.option("--precision", "float32");
   if (precision != "float32" && precision != "bfloat16")
     input_error("--precision", "expected float32 or bfloat16, got \"" + precision + "\"");
   if (tile < 32 || tile % 32 || overlap < 0 || overlap % 32 || 2 * overlap >= tile)
     input_error("--tile/--overlap", "need multiples of 32 with 2·overlap < tile");
+  // Large frames: give freed memory back above 64 MiB instead of keeping up to
+  // 1 GiB for reuse (the training apps' setting), so the peak stays bounded.
+  keep_freed_memory(64);
   torch::jit::Module m = model::load_reconstructor(model_path);
   model::set_reconstructor_precision(m, precision == "bfloat16" ? torch::kBFloat16 : torch::kFloat32);
   const torch::Tensor wl = m.attr("wavelengths_m").toTensor(), range = m.attr("depth_range_m").toTensor();
-  const torch::Tensor image = read_input(input);
+  torch::Tensor image = read_input(input);
+  const int64_t H = image.size(1), W = image.size(2);
+  release_freed_memory();  // the decoder's buffers
   setup_threads(0);
   make_dirs(args.out_dir);
   torch::NoGradGuard ng;
   std::unique_ptr<log::Progress> progress;
   auto f = [&](const torch::Tensor& x) { return model::run_reconstructor(m, x); };
-  const auto [hs, depth] = model::tiled_reconstruct(f, image, tile, overlap, [&](int64_t, int64_t total) {
+  auto [hs, depth] = model::tiled_reconstruct(f, image, tile, overlap, [&](int64_t, int64_t total) {
     if (!progress) progress = std::make_unique<log::Progress>("tiles", long(total));
     progress->step();
+    release_freed_memory();  // each tile's temporaries, so the heap does not creep
   });
   if (progress) progress->finish();
+  image = torch::Tensor();  // from here on only the outputs are held
   std::vector<double> wavelengths(wl.data_ptr<double>(), wl.data_ptr<double>() + wl.numel());
   std::vector<std::string> names;
   for (double w : wavelengths) names.push_back(data::spectral_channel_name("S0", w));
   data::write_channels_exr(args.out_dir + "/hs.exr", hs, names);
   data::write_channels_exr(args.out_dir + "/depth.exr", depth, {"Z"});
+  data::write_depth_png(args.out_dir + "/depth.png", depth, {}, range[0].item<double>(), range[1].item<double>());
+  depth = torch::Tensor();
   const double bw = wavelengths.size() > 1 ? (wavelengths.back() - wavelengths.front()) / double(wavelengths.size() - 1) : 10e-9;
   // The preview in bands of rows: a 22-megapixel cube is 2.2 GB in float32, so
-  // no full-size temporary (a clamped or float64 copy) is made.
-  torch::Tensor rgb = torch::empty({3, hs.size(1), hs.size(2)});
-  for (int64_t r = 0; r < hs.size(1); r += 128) {
-    const int64_t n = std::min<int64_t>(128, hs.size(1) - r);
+  // no full-size temporary (a clamped or float64 copy) is made; the cube is
+  // released before the PNG is encoded.
+  torch::Tensor rgb = torch::empty({3, H, W});
+  for (int64_t r = 0; r < H; r += 128) {
+    const int64_t n = std::min<int64_t>(128, H - r);
     rgb.narrow(1, r, n).copy_(data::spectral_to_linear_srgb(hs.narrow(1, r, n).clamp_min(0), wavelengths, bw));
   }
+  hs = torch::Tensor();
+  release_freed_memory();
   data::write_srgb_png(args.out_dir + "/hs_srgb.png", rgb, std::max(1e-6, rgb.max().item<double>()));
-  data::write_depth_png(args.out_dir + "/depth.png", depth, {}, range[0].item<double>(), range[1].item<double>());
   log::info("wrote " + args.out_dir + "/hs.exr (" + std::to_string(names.size()) + " bands), depth.exr, hs_srgb.png, depth.png (" +
-            std::to_string(image.size(2)) + "x" + std::to_string(image.size(1)) + ")");
+            std::to_string(W) + "x" + std::to_string(H) + ")");
   return 0;
 }
 

@@ -101,10 +101,16 @@ void use_passive_openmp(char** argv) {
   ::execv("/proc/self/exe", argv);  // returns only on failure: carry on as we are
 }
 
-void keep_freed_memory() {
+void keep_freed_memory(int64_t trim_threshold_mib) {
 #ifdef __GLIBC__
   mallopt(M_MMAP_THRESHOLD, 32 << 20);
-  mallopt(M_TRIM_THRESHOLD, 1 << 30);
+  mallopt(M_TRIM_THRESHOLD, int(std::min<int64_t>(trim_threshold_mib, 2047) << 20));
+#endif
+}
+
+void release_freed_memory() {
+#ifdef __GLIBC__
+  malloc_trim(0);
 #endif
 }
 

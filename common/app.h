@@ -51,8 +51,10 @@ void use_passive_openmp(char** argv);
 // so each training step's large temporaries arrive as fresh pages: about 45,000
 // page faults (~180 MiB zeroed by the kernel) per PSF + sensor step, 20% of its
 // time. This keeps blocks up to 32 MiB in the heap and trims it only above
-// 1 GiB of free space; peak memory is unchanged. No-op off glibc.
-void keep_freed_memory();
+// trim_threshold_mib (1 GiB) of free space; peak memory is unchanged. No-op off glibc.
+void keep_freed_memory(int64_t trim_threshold_mib = 1024);
+// Returns the heap's free memory to the kernel now (malloc_trim). No-op off glibc.
+void release_freed_memory();
 
 // Runs body(args) and maps exceptions to exit codes with one line on stderr.
 // Calls use_passive_openmp and keep_freed_memory first.

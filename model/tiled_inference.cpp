@@ -31,9 +31,11 @@ torch::Tensor ramp(int64_t lo, int64_t hi, int64_t a, int64_t b, int64_t n, int6
 
 std::pair<torch::Tensor, torch::Tensor> tiled_reconstruct(
     const std::function<std::pair<torch::Tensor, torch::Tensor>(const torch::Tensor&)>& f, const torch::Tensor& image,
-    int64_t tile, int64_t overlap, const std::function<void(int64_t, int64_t)>& on_tile) {
+    int64_t tile, int64_t overlap, const std::function<void(int64_t, int64_t)>& on_tile, int64_t context) {
   if (image.dim() != 3 || image.size(0) != 3) throw InputError("reconstruction input must be [3, H, W]");
   if (tile < 16 || overlap < 0 || 2 * overlap >= tile) throw InputError("tiling: need tile >= 16 and 0 <= 2·overlap < tile");
+  if (context < 0) context = 2 * overlap;
+  if (context < overlap) throw InputError("tiling: the context must cover the overlap");
   const int64_t H = image.size(1), W = image.size(2);
   const auto ys = starts(H, tile), xs = starts(W, tile);
   torch::Tensor hs, depth;
@@ -42,9 +44,9 @@ std::pair<torch::Tensor, torch::Tensor> tiled_reconstruct(
   for (int64_t y0 : ys)
     for (int64_t x0 : xs) {
       const int64_t y1 = std::min(H, y0 + tile), x1 = std::min(W, x0 + tile);
-      // Context: the blending zone (o) plus o more pixels the network sees but whose outputs are dropped.
-      const int64_t cy0 = std::max<int64_t>(0, y0 - 2 * overlap), cy1 = std::min(H, y1 + 2 * overlap);
-      const int64_t cx0 = std::max<int64_t>(0, x0 - 2 * overlap), cx1 = std::min(W, x1 + 2 * overlap);
+      // Context: the blending zone (overlap) plus pixels the network sees but whose outputs are dropped.
+      const int64_t cy0 = std::max<int64_t>(0, y0 - context), cy1 = std::min(H, y1 + context);
+      const int64_t cx0 = std::max<int64_t>(0, x0 - context), cx1 = std::min(W, x1 + context);
       const auto [h, d] = f(image.narrow(1, cy0, cy1 - cy0).narrow(2, cx0, cx1 - cx0).unsqueeze(0).contiguous());
       if (!hs.defined()) {
         hs = torch::zeros({h.size(1), H, W});

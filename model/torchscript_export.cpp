@@ -64,12 +64,13 @@ torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
     // The network runs in the dtype of its weights (float32 as exported; bfloat16
     // after set_reconstructor_precision), in the input's memory format (`to`
     // keeps it; run_reconstructor passes channels-last); the outputs are float32.
-    << "        x = image.to(self.p_head_hs_weight.dtype)\n"
+    << "        x = image\n"
     << "        if ph > 0 or pw > 0:\n"
     << "            if ph < H and pw < W:\n"
     << "                x = torch.reflection_pad2d(x, [0, pw, 0, ph])\n"
     << "            else:\n"
-    << "                x = torch.replication_pad2d(x, [0, pw, 0, ph])\n";
+    << "                x = torch.replication_pad2d(x, [0, pw, 0, ph])\n"
+    << "        x = x.to(self.p_head_hs_weight.dtype)\n";  // after padding: no bfloat16 padding kernels on the CPU
   for (int64_t l = 0; l < L; ++l) {
     block_source(o, "x", "down" + std::to_string(l), opt.norm);
     o << "        s" << l << " = x\n"

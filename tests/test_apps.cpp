@@ -527,6 +527,17 @@ TEST_CASE("hsd_eval and hsd_export on a trained checkpoint: metrics, report, pic
     const torch::Tensor hsx = data::read_channels_exr((base / "rec_frame.png" / "hs.exr").string(),
                                                       {"S0.450nm", "S0.550nm", "S0.650nm"});
     CHECK(hsx.sizes() == torch::IntArrayRef({3, 70, 66}));
+    // bfloat16 inference: the same files, close to float32.
+    const Run r16 = run("hsd_reconstruct --model " + (base / "export/reconstructor.pt").string() + " --input " +
+                        (base / "frame.png").string() + " --tile 32 --overlap 0 --precision bfloat16 --out " +
+                        (base / "rec16").string());
+    INFO(r16.err);
+    REQUIRE(r16.code == 0);
+    const torch::Tensor z32 = data::read_channels_exr((base / "rec_frame.png" / "depth.exr").string(), {"Z"});
+    const torch::Tensor z16 = data::read_channels_exr((base / "rec16" / "depth.exr").string(), {"Z"});
+    CHECK((z16 - z32).abs().max().item<double>() < 0.05 * z32.abs().max().item<double>());
+    CHECK(run("hsd_reconstruct --model " + (base / "export/reconstructor.pt").string() + " --input " +
+              (base / "frame.png").string() + " --precision half --out " + (base / "rb").string()).code == 2);
     // Bad inputs: a file that is not a model, a missing model, a missing image.
     Run b = run("hsd_reconstruct --model " + (base / "export/doe_height.pt").string() + " --input " + (base / "frame.png").string() +
                 " --out " + (base / "rb").string());

@@ -19,7 +19,7 @@
 namespace hsd::bench {
 
 int bench_reconstruct(Config cfg, const AppArgs& args, BenchOutput& out) {
-  const int64_t size = args.integer("--size", 1024), tile = args.integer("--tile", 1024), overlap = args.integer("--overlap", 64);
+  const int64_t size = args.integer("--size", 2048), tile = args.integer("--tile", 512), overlap = args.integer("--overlap", 32);
   if (size < 64 || size > 8192) input_error("--size", "must be in [64, 8192]");
   const auto bands = cfg.optics.wavelengths_m();
   const torch::Tensor omega = optics::camera_response(cfg.sensor.camera, bands, cfg.optics.band_width_m());
