@@ -57,8 +57,9 @@ std::pair<torch::Tensor, torch::Tensor> tiled_reconstruct(
       const int64_t ox0 = std::max<int64_t>(0, x0 - overlap), ox1 = std::min(W, x1 + overlap);
       const torch::Tensor w = ramp(oy0, oy1, y0, y1, H, overlap).view({1, -1, 1}) * ramp(ox0, ox1, x0, x1, W, overlap).view({1, 1, -1});
       auto region = [&](const torch::Tensor& t) { return t[0].narrow(1, oy0 - cy0, oy1 - oy0).narrow(2, ox0 - cx0, ox1 - ox0).cpu().to(torch::kFloat32); };
-      hs.narrow(1, oy0, oy1 - oy0).narrow(2, ox0, ox1 - ox0).add_(region(h) * w);
-      depth.narrow(1, oy0, oy1 - oy0).narrow(2, ox0, ox1 - ox0).add_(region(d) * w);
+      // accumulated in place (a [L, h, w] product would be a 30+ MB temporary per tile)
+      hs.narrow(1, oy0, oy1 - oy0).narrow(2, ox0, ox1 - ox0).addcmul_(region(h), w);
+      depth.narrow(1, oy0, oy1 - oy0).narrow(2, ox0, ox1 - ox0).addcmul_(region(d), w);
       wsum.narrow(1, oy0, oy1 - oy0).narrow(2, ox0, ox1 - ox0).add_(w);
       if (on_tile) on_tile(++done, int64_t(ys.size() * xs.size()));
     }

@@ -40,16 +40,17 @@ int bench_reconstruct(Config cfg, const AppArgs& args, BenchOutput& out) {
     double seconds = 0, peak = 0;
     std::pair<torch::Tensor, torch::Tensor> result;
   };
-  auto measure = [&](torch::jit::Module& m, const std::string& name) {
+  // hsd_reconstruct's default context: 2·overlap in float32, overlap in bfloat16
+  auto measure = [&](torch::jit::Module& m, const std::string& name, int64_t context) {
     log::info("reconstructing a " + std::to_string(size) + "^2 frame in " + name + " ...");
     auto f = [&](const torch::Tensor& x) { return model::run_reconstructor(m, x); };
     Measured r;
-    r.seconds = median_seconds([&] { r.result = model::tiled_reconstruct(f, img, tile, overlap); }, repeats);
-    r.peak = peak_rss_during([&] { model::tiled_reconstruct(f, img, tile, overlap); });
+    r.seconds = median_seconds([&] { r.result = model::tiled_reconstruct(f, img, tile, overlap, {}, context); }, repeats);
+    r.peak = peak_rss_during([&] { model::tiled_reconstruct(f, img, tile, overlap, {}, context); });
     return r;
   };
   const double rss0 = current_rss_mib();
-  const Measured a = measure(f32, "float32"), b = measure(bf16, "bfloat16");
+  const Measured a = measure(f32, "float32", 2 * overlap), b = measure(bf16, "bfloat16", overlap);
   const double hs_err = ((b.result.first - a.result.first).abs().mean() / a.result.first.abs().mean()).item<double>();
   const double depth_err = (b.result.second - a.result.second).abs().max().item<double>();
   out.json = Json{{"bench", "reconstruct"}, {"threads", torch::get_num_threads()}, {"size", size}, {"tile", tile},
@@ -57,7 +58,8 @@ int bench_reconstruct(Config cfg, const AppArgs& args, BenchOutput& out) {
                   {"seconds", a.seconds}, {"seconds_per_megapixel", a.seconds / mp}, {"peak_rss_mib", a.peak},
                   {"seconds_bfloat16", b.seconds}, {"seconds_per_megapixel_bfloat16", b.seconds / mp},
                   {"peak_rss_mib_bfloat16", b.peak}, {"bfloat16_hs_mean_rel_diff", hs_err},
-                  {"bfloat16_depth_max_diff_m", depth_err}, {"rss_at_start_mib", rss0}};
+                  {"bfloat16_depth_max_diff_m", depth_err}, {"context_float32", 2 * overlap},
+                  {"context_bfloat16", overlap}, {"rss_at_start_mib", rss0}};
   char buf[700];
   std::snprintf(buf, sizeof buf,
                 "reconstruct (TorchScript export): %lld x %lld frame, tiles %lld + %lld overlap, %lld bands, U-Net %lld x %lld, threads %d\n"
