@@ -73,7 +73,7 @@ PsfSimulator::PsfSimulator(PsfSpec spec) : spec_(std::move(spec)) {
   if (s.pupil_cell_integration != "sinc" && s.pupil_cell_integration != "sinc_cross" &&
       s.pupil_cell_integration != "midpoint")
     throw InputError("PSF: pupil_cell_integration must be \"sinc_cross\", \"sinc\" or \"midpoint\"");
-  const bool cell_sinc = s.pupil_cell_integration != "midpoint", cross = s.pupil_cell_integration == "sinc_cross";
+  const bool cell_sinc = s.cell_sinc(), cross = s.cell_kernel_terms() == 2;
   if (s.spectral_samples < 1) throw InputError("PSF: spectral_samples must be >= 1");
   const size_t K = size_t(s.spectral_samples);
   if (K > 1 && !(s.band_width_m > 0.0)) throw InputError("PSF: spectral_samples > 1 needs band_width_m > 0");
@@ -235,7 +235,7 @@ torch::Tensor low_rank(const std::vector<torch::Tensor>& factors, size_t j) {
 
 std::vector<int64_t> PsfSimulator::kernel_ranks() const {
   std::vector<int64_t> r;
-  const int64_t G = spec_.pupil_cell_integration == "sinc_cross" ? 2 : 1;
+  const int64_t G = spec_.cell_kernel_terms();
   for (size_t j = 0; j < tilt_.size(); ++j) r.push_back(left_.empty() ? tilt_[j].size(-2) : left_[j].size(1) / G);
   return r;
 }
@@ -268,8 +268,8 @@ PsfStack PsfSimulator::compute(const torch::Tensor& height_m, const std::vector<
   b.aperture = aperture_real_, b.pupil_x = pupil_x_;
   b.sensor_distance_m = s.sensor_distance_m, b.pixel_pitch_m = s.pixel_pitch_m, b.doe_pitch_m = s.pupil_pitch_m();
   b.aperture_energy = aperture_energy_, b.psf_size = s.psf_size, b.complex_dtype = complex_dtype();
-  b.cell_sinc = s.pupil_cell_integration != "midpoint";
-  b.cross = s.pupil_cell_integration == "sinc_cross";
+  b.cell_sinc = s.cell_sinc();
+  b.cross = s.cell_kernel_terms() == 2;
   for (int64_t z : zi) b.depths_m.push_back(s.depths_m[size_t(z)]);
 
   std::vector<torch::Tensor> psfs, energies;

@@ -58,6 +58,8 @@ struct PsfSpec {
   double band_width_m = 0.0;
   std::vector<double> spectral_refractive_index;
 
+  bool cell_sinc() const { return pupil_cell_integration != "midpoint"; }       // sinc factors on the cells
+  int64_t cell_kernel_terms() const { return pupil_cell_integration == "sinc_cross" ? 2 : 1; }  // G
   int64_t pupil_samples() const { return doe_samples * pupil_oversampling; }   // N·k
   double pupil_pitch_m() const { return doe_pitch_m / double(pupil_oversampling); }  // δ/k
   // The L·K wavelengths and weights of the spectral quadrature, band-major.

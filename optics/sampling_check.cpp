@@ -40,7 +40,7 @@ SamplingReport check_sampling(const PsfSpec& spec, const torch::Tensor& energy_i
     // The cross term of the cell integration is first order in the tilt's phase
     // ramp across a cell, B = k x δ/(2s); at the window edge it must stay small.
     const double b_edge = M_PI * double(spec.psf_size) * spec.pixel_pitch_m * delta / (2.0 * lam * s);
-    if (spec.pupil_cell_integration != "midpoint" && b_edge > 0.5)
+    if (spec.cell_sinc() && b_edge > 0.5)
       r.warnings.push_back(fmt("cell integration at lambda = %.0f nm: the tilt's phase ramp across a pupil cell reaches "
                                "%.2f rad at the window edge (its expansion assumes << 1); raise optics.pupil_oversampling",
                                lam * 1e9, b_edge));

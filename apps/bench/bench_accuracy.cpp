@@ -124,10 +124,12 @@ int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out) {
   for (int64_t z : layers) layer_depths.push_back(base.depths_m[size_t(z)]);
   const torch::Tensor masks = optics::layer_masks(depth, layer_depths, sensor.mask_sigma_px);
   const torch::Tensor zi = torch::tensor(layers, torch::kInt64);
-  auto render = [&](const torch::Tensor& psf_all) {  // psf [L, Z, P', P'] -> J [1, 3, H, W]
-    return optics::render_sensor_image(radiance.to(psf_all.scalar_type()), masks.to(psf_all.scalar_type()),
-                                       psf_all.index_select(1, zi), sensor.omega.to(psf_all.scalar_type()));
+  // psf of the scene's layers [L, Z', P', P'] -> J [1, 3, H, W], in the PSF's dtype
+  auto render_layers = [&](const torch::Tensor& p) {
+    const auto dt = p.scalar_type();
+    return optics::render_sensor_image(radiance.to(dt), masks.to(dt), p, sensor.omega.to(dt));
   };
+  auto render = [&](const torch::Tensor& psf_all) { return render_layers(psf_all.index_select(1, zi)); };  // [L, Z, P', P']
 
   // Converged reference.
   optics::PsfSpec ref_spec = base;
@@ -231,9 +233,7 @@ int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out) {
     };
     auto step = [&](bool backward) {
       torch::Tensor h = h0.clone().set_requires_grad(backward);
-      const torch::Tensor p = psf_of(h).psf;
-      const torch::Tensor J = optics::render_sensor_image(radiance.to(p.scalar_type()), masks.to(p.scalar_type()), p,
-                                                          sensor.omega.to(p.scalar_type()));
+      const torch::Tensor J = render_layers(psf_of(h).psf);
       if (backward) (J * gw.to(J.scalar_type())).sum().backward();
     };
     Row r{s};

@@ -44,7 +44,7 @@ struct FloorWork {
     const auto c = torch::TensorOptions().dtype(torch::kComplexFloat);
     field = torch::randn({N, N}, c);
     // With the cross term of the cell integration the low-rank kernels carry G = 2 terms.
-    const int64_t G = spec.pupil_cell_integration == "sinc_cross" ? 2 : 1;
+    const int64_t G = spec.cell_kernel_terms();
     for (size_t l = 0; l < ranks.size(); ++l) {
       const int64_t M = P * spec.pixel_nodes[l / size_t(spec.spectral_samples)];
       const bool low = ranks[l] < M;
