@@ -78,7 +78,7 @@ TEST_CASE("fisher: Zernike modes are orthonormal over the disk", "[fisher]") {
   CHECK((gram - torch::eye(15, torch::kFloat64)).abs().max().item<double>() < 0.02);
 }
 
-TEST_CASE("fisher: the design lowers the CRLB below the Fresnel start; symmetric cases stay finite", "[fisher]") {
+TEST_CASE("fisher: the design lowers the CRLB below the Fresnel start, and symmetric cases stay finite", "[fisher]") {
   optics::PsfSpec spec;
   const auto g = small_geometry(&spec);
   const auto s = small_settings();

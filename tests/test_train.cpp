@@ -90,7 +90,7 @@ TEST_CASE("train: a network handles sizes that are not multiples of its poolings
   CHECK(out.depth_m.max().item<double>() <= o.depth_max_m + 1e-6);
 }
 
-TEST_CASE("train: a step lowers the loss and moves the height map; a frozen DOE stays put", "[train]") {
+TEST_CASE("train: a step lowers the loss and moves the height map, and a frozen DOE stays put", "[train]") {
   const std::string root = (fs::temp_directory_path() / "hsd_test_train_step").string();
   {
     train::Trainer t(tiny_training(root, {"train.lr_net=0.003"}));
