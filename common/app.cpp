@@ -130,6 +130,9 @@ int run_app(const AppSpec& spec, int argc, char** argv, const std::function<int(
   } catch (const NumericalError& e) {
     std::fprintf(stderr, "%s: numerical error: %s\n", spec.name.c_str(), e.what());
     return 3;
+  } catch (const DistributedError& e) {
+    std::fprintf(stderr, "%s: distributed training failed: %s\n", spec.name.c_str(), e.what());
+    return 4;
   } catch (const c10::Error& e) {
     std::fprintf(stderr, "%s: internal error (torch): %s\n", spec.name.c_str(), e.what_without_backtrace());
     return 1;

@@ -294,6 +294,14 @@ Config parse_config(const Json& resolved) {
                                {"checkpoint_every", T.checkpoint_every}, {"log_every", T.log_every}})
       if (v < 1) t->fail(k, "must be >= 1");
   }
+  if (auto d = r.optional_child("distributed")) {
+    auto& D = c.distributed;
+    D.timeout_s = d->get_number("timeout_s", D.timeout_s);
+    if (!(D.timeout_s >= 1.0 && D.timeout_s <= 86400.0)) d->fail("timeout_s", "must be in [1, 86400] seconds");
+    D.bucket_mib = d->get_number("bucket_mib", D.bucket_mib);
+    if (!(D.bucket_mib > 0.0 && D.bucket_mib <= 4096.0)) d->fail("bucket_mib", "must be in (0, 4096] MiB");
+    D.sync_batch_norm = d->get_bool("sync_batch_norm", D.sync_batch_norm);
+  }
   if (auto d = r.optional_child("data")) c.data = parse_data(*d);
   r.check_all_used();
   return c;

@@ -117,6 +117,14 @@ struct TrainConfig {
   int64_t log_every = 10;           // steps between metrics.csv rows
 };
 
+// Data-parallel training over several processes (train/distributed.h); who
+// takes part comes from torchrun's environment variables, not the config.
+struct DistributedConfig {
+  double timeout_s = 300.0;  // rendezvous and every collective: a dead or stalled rank ends the others after this
+  double bucket_mib = 25.0;  // gradients are summed in flat buckets of about this size (fewer, larger collectives)
+  bool sync_batch_norm = true;  // batch statistics of the global batch (matches one process); false: per rank, as DDP
+};
+
 // hsd_scenes: synthetic tabletop HS-D scenes (data/scene_generator.h).
 struct GeneratorConfig {
   int64_t train_scenes = 12, val_scenes = 2, test_scenes = 2;
@@ -154,6 +162,7 @@ struct Config {
   FisherConfig fisher;
   ModelConfig model;
   TrainConfig train;
+  DistributedConfig distributed;
   DataConfig data;
   Json resolved;  // the fully resolved JSON (after extends and --set), written next to outputs
 };

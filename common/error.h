@@ -3,6 +3,9 @@
 //                    one line that names the key path or file and the reason.
 //   NumericalError : a NaN/Inf or an impossible value appeared inside a computation
 //                    -> exit code 3, naming where it was detected.
+//   DistributedError: data-parallel training lost a peer (a rank died, stalled
+//                    past the timeout or could not be reached) -> exit code 4,
+//                    naming this rank and the collective that failed.
 // Anything else that escapes an app is a bug -> exit code 1.
 #pragma once
 #include <stdexcept>
@@ -17,6 +20,10 @@ struct InputError : std::runtime_error {
 };
 
 struct NumericalError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct DistributedError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 

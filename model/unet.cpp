@@ -1,6 +1,7 @@
 #include "model/unet.h"
 
 #include "model/spectral_upsampling.h"
+#include "model/sync_batch_norm.h"
 
 namespace hsd::model {
 
@@ -10,7 +11,7 @@ torch::nn::Sequential HsdNetImpl::block(int64_t in, int64_t out) {
   torch::nn::Sequential s;
   for (int k = 0; k < 2; ++k) {
     s->push_back(torch::nn::Conv2d(torch::nn::Conv2dOptions(k == 0 ? in : out, out, 3).padding(1).bias(opt_.norm == "none")));
-    if (opt_.norm == "batch") s->push_back(torch::nn::BatchNorm2d(out));
+    if (opt_.norm == "batch") s->push_back(SyncBatchNorm2d(out));
     else if (opt_.norm == "group") s->push_back(torch::nn::GroupNorm(std::min<int64_t>(8, out), out));
     s->push_back(torch::nn::ReLU(true));
   }
@@ -38,6 +39,11 @@ HsdNetImpl::HsdNetImpl(const NetOptions& options, const torch::Tensor& upsamplin
   head_hs_ = register_module("head_hs", torch::nn::Conv2d(torch::nn::Conv2dOptions(width[0], opt_.bands, 1)));
   head_depth_ = register_module("head_depth", torch::nn::Conv2d(torch::nn::Conv2dOptions(width[0], 1, 1)));
   weights_ = register_buffer("upsampling_weights", upsampling_weights.to(torch::kFloat32).clone());
+}
+
+void HsdNetImpl::set_replica_group(const std::shared_ptr<ReplicaGroup>& group) {
+  for (const auto& m : modules())
+    if (auto* bn = m->as<SyncBatchNorm2dImpl>()) bn->set_replica_group(group);
 }
 
 NetOutput HsdNetImpl::forward(const torch::Tensor& image) {

@@ -6,12 +6,17 @@
 // Inputs whose sides are not multiples of 2^levels are reflect-padded and the
 // outputs cropped back. Every block is conv 3×3 -> norm -> ReLU, twice; down
 // by 2×2 max pooling, up by bilinear ×2 then conv. Built only from ops that
-// TorchScript also has, so the exporter can re-express it.
+// TorchScript also has, so the exporter can re-express it. Batch norm is
+// synchronised over data-parallel replicas once set_replica_group is called
+// (sync_batch_norm.h); alone it is torch's BatchNorm2d.
 #pragma once
+#include <memory>
 #include <string>
 #include <vector>
 
 #include <torch/torch.h>
+
+#include "model/replica_group.h"
 
 namespace hsd::model {
 
@@ -37,6 +42,8 @@ class HsdNetImpl : public torch::nn::Module {
   // image [B, 3, H, W] (linear sensor RGB) -> cube and depth.
   NetOutput forward(const torch::Tensor& image);
   const NetOptions& options() const { return opt_; }
+  // Data-parallel training: batch statistics over all replicas (nullptr: this process's batch).
+  void set_replica_group(const std::shared_ptr<ReplicaGroup>& group);
 
  private:
   torch::nn::Sequential block(int64_t in, int64_t out);

@@ -23,7 +23,7 @@ SensorModel make_sensor_model(const SensorConfig& cfg, const PsfSpec& spec, doub
 
 SensorImage simulate_sensor(const PsfSimulator& psf_sim, const SensorModel& model, const torch::Tensor& height_m,
                             const torch::Tensor& radiance, const torch::Tensor& depth_m,
-                            c10::optional<at::Generator> generator, const LeaveOut& leave) {
+                            const NoiseRng& noise_rng, const LeaveOut& leave) {
   const auto& spec = psf_sim.spec();
   const int64_t L = int64_t(spec.wavelengths_m.size());
   if (radiance.dim() != 4 || radiance.size(1) != L)
@@ -52,7 +52,7 @@ SensorImage simulate_sensor(const PsfSimulator& psf_sim, const SensorModel& mode
   if (y1 == y0 || x1 == x0) {
     SensorImage out;
     out.clean = torch::zeros({B, 3, H, W}, radiance.options()) * height_m.sum().to(radiance.scalar_type());  // keeps the graph
-    out.image = apply_sensor_noise(out.clean, model.noise, generator);
+    out.image = apply_sensor_noise(out.clean, model.noise, noise_rng);
     out.psf = torch::zeros({int64_t(spec.wavelengths_m.size()), 0, spec.psf_size, spec.psf_size}, radiance.options());
     return out;
   }
@@ -94,7 +94,7 @@ SensorImage simulate_sensor(const PsfSimulator& psf_sim, const SensorModel& mode
   if (y0 != 0 || x0 != 0 || y1 != H || x1 != W)
     clean = torch::constant_pad_nd(clean, {x0, W - x1, y0, H - y1}, 0.0);
   out.clean = clean;
-  out.image = apply_sensor_noise(out.clean, model.noise, generator);
+  out.image = apply_sensor_noise(out.clean, model.noise, noise_rng);
   check_finite(out.image, "sensor image");
   return out;
 }

@@ -38,6 +38,6 @@ struct SensorImage {
 // and radiance.
 SensorImage simulate_sensor(const PsfSimulator& psf_sim, const SensorModel& model, const torch::Tensor& height_m,
                             const torch::Tensor& radiance, const torch::Tensor& depth_m,
-                            c10::optional<at::Generator> generator = c10::nullopt, const LeaveOut& leave = LeaveOut());
+                            const NoiseRng& noise_rng = {}, const LeaveOut& leave = LeaveOut());
 
 }  // namespace hsd::optics

@@ -7,6 +7,7 @@
 // straight-through gradient.
 #pragma once
 #include <optional>
+#include <vector>
 
 #include <torch/types.h>
 
@@ -20,8 +21,23 @@ struct NoiseModel {
   bool enabled() const { return std_max > 0.0 || photons_at_saturation > 0.0 || saturation > 0.0 || bit_depth > 0; }
 };
 
-// image [B, C, H, W]; the generator makes the draws reproducible.
-torch::Tensor apply_sensor_noise(const torch::Tensor& image, const NoiseModel& model,
-                                 c10::optional<at::Generator> generator = c10::nullopt);
+// Where the noise draws come from: torch's default generator, one generator for
+// the whole batch, or one generator per image. Per image, image i's draws (its
+// σ, then its ε) depend on its own generator alone, so a slice of a batch gets
+// exactly the noise it gets inside the whole batch: data-parallel training
+// splits a batch over processes and still matches one process.
+struct NoiseRng {
+  c10::optional<at::Generator> batch;
+  std::vector<at::Generator> per_image;
+  NoiseRng() = default;
+  NoiseRng(c10::nullopt_t) {}
+  NoiseRng(at::Generator g) : batch(std::move(g)) {}
+  NoiseRng(c10::optional<at::Generator> g) : batch(std::move(g)) {}
+  NoiseRng(std::vector<at::Generator> g) : per_image(std::move(g)) {}
+};
+
+// image [B, C, H, W]; the generator(s) make the draws reproducible. With
+// per-image generators there must be B of them.
+torch::Tensor apply_sensor_noise(const torch::Tensor& image, const NoiseModel& model, const NoiseRng& rng = {});
 
 }  // namespace hsd::optics

@@ -1,6 +1,11 @@
 // Small builders shared by the tests: PSF specs on tiny grids.
 #pragma once
+#include <array>
+#include <cstdio>
+#include <filesystem>
 #include <string>
+#include <sys/wait.h>
+#include <unistd.h>
 #include <vector>
 
 #include <torch/torch.h>
@@ -39,6 +44,40 @@ inline std::pair<double, double> centroid(const torch::Tensor& img) {
   const torch::Tensor w = img.to(torch::kFloat64);
   const double tot = w.sum().item<double>();
   return {(w.sum(0) * c).sum().item<double>() / tot, (w.sum(1) * c).sum().item<double>() / tot};
+}
+
+// Apps as a user runs them: from the source folder, stdout dropped.
+struct Run {
+  int code;
+  std::string err;
+};
+inline Run run(const std::string& args) {
+  // One file per test process: ctest -j runs test cases side by side.
+  const auto errfile = std::filesystem::temp_directory_path() / ("hsd_test_app_stderr_" + std::to_string(::getpid()) + ".txt");
+  const std::string cmd = "cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) + "/" + args +
+                          " > /dev/null 2> " + errfile.string();
+  const int status = std::system(cmd.c_str());
+  std::string err;
+  if (FILE* f = std::fopen(errfile.c_str(), "r")) {
+    std::array<char, 4096> buf{};
+    size_t n;
+    while ((n = std::fread(buf.data(), 1, buf.size(), f)) > 0) err.append(buf.data(), n);
+    std::fclose(f);
+  }
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, err};
+}
+// Runs a shell command and returns its stdout and exit code.
+inline std::pair<std::string, int> capture(const std::string& cmd) {
+  std::string out;
+  int code = -1;
+  if (FILE* f = popen(cmd.c_str(), "r")) {
+    char buf[4096];
+    size_t n;
+    while ((n = fread(buf, 1, sizeof buf, f)) > 0) out.append(buf, n);
+    const int status = pclose(f);
+    code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  }
+  return {out, code};
 }
 
 }  // namespace hsd::test

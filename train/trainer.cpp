@@ -6,6 +6,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
 #include <sstream>
 
 #include "common/app.h"
@@ -59,6 +60,14 @@ Batch stack(const std::vector<data::Patch>& patches, torch::Device device) {
   return {torch::stack(r).to(device), torch::stack(d).to(device)};
 }
 
+// One noise generator per image, keyed by its index in the global batch: a
+// rank's slice gets the noise it would get in one process's whole batch.
+std::vector<at::Generator> image_generators(uint64_t key, int64_t first, int64_t count) {
+  std::vector<at::Generator> g;
+  for (int64_t i = 0; i < count; ++i) g.push_back(at::detail::createCPUGenerator(mix(key, uint64_t(first + i))));
+  return g;
+}
+
 void check_grads(const std::vector<std::pair<std::string, torch::Tensor>>& params, int64_t step) {
   for (const auto& [name, p] : params)
     if (p.grad().defined() && !torch::isfinite(p.grad()).all().item<bool>())
@@ -68,16 +77,24 @@ void check_grads(const std::vector<std::pair<std::string, torch::Tensor>>& param
 
 }  // namespace
 
-Trainer::Trainer(const Config& cfg)
+Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
     : cfg_(cfg),
+      group_(group && group->world_size() > 1 ? std::move(group) : nullptr),
       device_(resolve_device(cfg.device)),
       material_(optics::Material::load(cfg.optics.material)),
       psf_(std::make_unique<optics::PsfSimulator>(optics::make_psf_spec(cfg.optics, material_, device_))),
       sensor_(optics::make_sensor_model(cfg.sensor, psf_->spec(), cfg.optics.band_width_m())),
       doe_(optics::make_doe(cfg.optics, material_, cfg.seed, device_)) {
-  torch::manual_seed(int64_t(cfg.seed));  // network initialisation
-  const torch::Tensor w = model::spectral_upsampling_weights(sensor_.omega.cpu());
-  net_ = model::HsdNet(net_options(cfg), w);
+  {
+    // The network's initial weights come from torch's global generator: seeded
+    // and drawn under one lock, so trainers built on several threads at once
+    // (ranks as threads in tests) each get the seed's weights.
+    static std::mutex global_rng;
+    std::lock_guard<std::mutex> lock(global_rng);
+    torch::manual_seed(int64_t(cfg.seed));
+    const torch::Tensor w = model::spectral_upsampling_weights(sensor_.omega.cpu());
+    net_ = model::HsdNet(net_options(cfg), w);
+  }
   net_->to(device_);
   weights_ = {cfg.train.loss_alpha, cfg.train.loss_beta, cfg.train.loss_gamma};
   std::vector<torch::optim::OptimizerParamGroup> groups;
@@ -89,10 +106,76 @@ Trainer::Trainer(const Config& cfg)
                         std::make_unique<torch::optim::AdamOptions>(cfg.train.lr_doe_m));
   }
   opt_ = std::make_unique<torch::optim::Adam>(std::move(groups), torch::optim::AdamOptions(cfg.train.lr_net));
+  if (group_) {
+    rank_ = group_->rank(), world_ = group_->world_size();
+    if (cfg.train.batch_size % world_ != 0)
+      input_error("config key train.batch_size", std::to_string(cfg.train.batch_size) + " does not split evenly over " +
+                                                     std::to_string(world_) + " ranks (WORLD_SIZE)");
+    if (cfg.distributed.sync_batch_norm) net_->set_replica_group(group_);
+    group_->broadcast_(replicated_state(), "the initial network and DOE");
+  }
+}
+
+std::vector<torch::Tensor> Trainer::trained_parameters() const {
+  std::vector<torch::Tensor> p = net_->parameters();
+  if (!cfg_.train.freeze_doe) p.push_back(doe_.parameter());
+  return p;
+}
+
+std::vector<torch::Tensor> Trainer::replicated_state(bool with_buffers) const {
+  std::vector<torch::Tensor> t = net_->parameters();
+  if (with_buffers)
+    for (const auto& b : net_->buffers()) t.push_back(b);
+  t.push_back(doe_.parameter());
+  for (const auto& g : opt_->param_groups())
+    for (const auto& p : g.params()) {
+      const auto it = opt_->state().find(c10::guts::to_string(p.unsafeGetTensorImpl()));
+      if (it == opt_->state().end()) continue;
+      const auto& st = static_cast<const torch::optim::AdamParamState&>(*it->second);
+      t.push_back(st.exp_avg());
+      t.push_back(st.exp_avg_sq());
+    }
+  return t;
+}
+
+void Trainer::check_replicas_agree(int64_t step) {
+  if (!group_) return;
+  torch::NoGradGuard no_grad;
+  // Batch norm per rank (distributed.sync_batch_norm = false): the running
+  // statistics differ by design; rank 0's are kept, as DDP does.
+  const bool synced = cfg_.distributed.sync_batch_norm;
+  if (!synced) group_->broadcast_(net_->buffers(), "rank 0's batch-norm statistics");
+  // Rank 0's values next to ours; each rank reports its largest difference in
+  // its own slot, and one sum gathers them.
+  const std::vector<torch::Tensor> state = replicated_state(synced);
+  std::vector<torch::Tensor> rank0;
+  for (const auto& t : state) rank0.push_back(t.detach().clone());
+  group_->broadcast_(rank0, "rank 0's parameters (agreement check)");
+  double diff = 0.0;
+  for (size_t i = 0; i < state.size(); ++i)
+    if (state[i].numel() > 0)
+      diff = std::max(diff, (state[i].to(torch::kFloat64) - rank0[i].to(torch::kFloat64)).abs().max().item<double>());
+  std::vector<double> slots(size_t(world_), 0.0);
+  slots[size_t(rank_)] = diff;
+  slots = group_->sum(slots, "parameter differences");
+  bool drifted = false;
+  for (int64_t r = 1; r < world_; ++r)
+    if (slots[size_t(r)] != 0.0) {
+      drifted = true;
+      if (rank_ == 0)
+        log::warn("step " + std::to_string(step) + ": rank " + std::to_string(r) + "'s parameters differ from rank 0's by up to " +
+                c10::str(slots[size_t(r)]) + " (rounding on unlike hosts?); every rank takes rank 0's");
+    }
+  if (drifted)
+    for (size_t i = 0; i < state.size(); ++i) state[i].detach().copy_(rank0[i]);
 }
 
 void Trainer::attach_data() {
+  // Rank 0 makes the dataset if needed; the others wait for it (up to a day:
+  // if rank 0 dies its store goes with it and the wait ends at once).
+  if (group_ && rank_ != 0) group_->wait_for("dataset", 86400.0, "to provide the dataset " + cfg_.data.root);
   const std::string root = data::ensure_dataset(cfg_);
+  if (group_ && rank_ == 0) group_->announce("dataset");
   const auto bands = cfg_.optics.wavelengths_m();
   const double bw = cfg_.optics.band_width_m();
   train_scenes_ = data::load_split(root, "train", bands, bw, cfg_.data.loader_threads);
@@ -120,11 +203,15 @@ void Trainer::attach_data() {
 
 Batch Trainer::train_batch(int64_t step) const {
   if (!sampler_) throw InputError("trainer: attach_data() first");
+  // The global batch's specs (cheap), then only this rank's patches.
+  const auto specs = sampler_->draw(cfg_.train.batch_size, mix(cfg_.seed, uint64_t(step)), bank_->size(),
+                                    cfg_.data.intensity_min, cfg_.data.intensity_max);
+  const int64_t b = cfg_.train.batch_size / world_, first = rank_ * b;
   std::vector<data::Patch> patches;
-  for (const auto& s : sampler_->draw(cfg_.train.batch_size, mix(cfg_.seed, uint64_t(step)), bank_->size(),
-                                      cfg_.data.intensity_min, cfg_.data.intensity_max))
-    patches.push_back(sampler_->extract(s, bank_.get()));
-  return stack(patches, device_);
+  for (int64_t i = first; i < first + b; ++i) patches.push_back(sampler_->extract(specs[size_t(i)], bank_.get()));
+  Batch out = stack(patches, device_);
+  out.first_index = first;
+  return out;
 }
 
 StepStats Trainer::step(const Batch& batch, int64_t step) {
@@ -138,16 +225,24 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   if (groups.size() > 1) static_cast<torch::optim::AdamOptions&>(groups[1].options()).lr(st.lr_doe);
 
   net_->train();
-  auto gen = at::detail::createCPUGenerator(mix(cfg_.seed ^ 0xA5A5A5A5ull, uint64_t(step)));
+  const auto gens = image_generators(mix(cfg_.seed ^ 0xA5A5A5A5ull, uint64_t(step)), batch.first_index, batch.radiance.size(0));
   const torch::Tensor h = doe_.height();
-  const optics::SensorImage img = optics::simulate_sensor(*psf_, sensor_, h, batch.radiance, batch.depth_m, gen);
+  const optics::SensorImage img = optics::simulate_sensor(*psf_, sensor_, h, batch.radiance, batch.depth_m, gens);
   const model::NetOutput out = net_->forward(img.image);
   const LossTerms L = reconstruction_loss(out.hs, batch.radiance, out.inv_depth, 1.0 / batch.depth_m, weights_);
-  if (!std::isfinite(L.total.item<double>()))
-    throw NumericalError("step " + std::to_string(step) + ": the loss is NaN or Inf (cube term " +
-                         c10::str(L.hs.item<double>()) + ", depth term " + c10::str(L.depth.item<double>()) + ")");
+  // The global batch's loss terms (the mean of the ranks' equal slices): what
+  // is logged, and what every rank checks, so all ranks stop together.
+  std::vector<double> terms{L.total.item<double>(), L.hs.item<double>(), L.depth.item<double>(), L.tv.item<double>()};
+  if (group_) {
+    terms = group_->sum(terms, "the loss of step " + std::to_string(step));
+    for (double& t : terms) t /= double(world_);
+  }
+  if (!std::isfinite(terms[0]))
+    throw NumericalError("step " + std::to_string(step) + ": the loss is NaN or Inf (cube term " + c10::str(terms[1]) +
+                         ", depth term " + c10::str(terms[2]) + ")");
   opt_->zero_grad();
   L.total.backward();
+  if (group_) group_->average_gradients_(trained_parameters(), "the gradients of step " + std::to_string(step));
   std::vector<std::pair<std::string, torch::Tensor>> named;
   for (const auto& p : net_->named_parameters()) named.emplace_back("network parameter " + p.key(), p.value());
   if (!T.freeze_doe) named.emplace_back("the DOE height map", doe_.parameter());
@@ -156,10 +251,10 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   // its own scale (its gradient is in loss per metre, ~1e6 times larger).
   if (T.clip_grad_norm > 0) torch::nn::utils::clip_grad_norm_(net_->parameters(), T.clip_grad_norm);
   opt_->step();
-  st.loss = L.total.item<double>();
-  st.hs = L.hs.item<double>();
-  st.depth = L.depth.item<double>();
-  st.tv = L.tv.item<double>();
+  st.loss = terms[0];
+  st.hs = terms[1];
+  st.depth = terms[2];
+  st.tv = terms[3];
   return st;
 }
 
@@ -167,15 +262,17 @@ ValStats Trainer::validate() {
   if (!val_.radiance.defined()) throw InputError("trainer: attach_data() first");
   torch::NoGradGuard no_grad;
   net_->eval();
-  auto gen = at::detail::createCPUGenerator(mix(cfg_.seed, kValSeed + 1));
   const torch::Tensor h = doe_.height();
-  const int64_t n = val_.radiance.size(0), B = cfg_.train.batch_size;
+  // This rank's share [lo, hi) of the validation patches (all of them alone).
+  const int64_t n_all = val_.radiance.size(0), B = cfg_.train.batch_size;
+  const int64_t lo = n_all * rank_ / world_, hi = n_all * (rank_ + 1) / world_;
   double loss = 0, se = 0, abs_z = 0, se_z = 0, count = 0, px = 0;
   const double peak = val_.radiance.max().item<double>();
-  for (int64_t i = 0; i < n; i += B) {
-    const int64_t b = std::min(B, n - i);
+  for (int64_t i = lo; i < hi; i += B) {
+    const int64_t b = std::min(B, hi - i);
     const torch::Tensor I = val_.radiance.narrow(0, i, b), Z = val_.depth_m.narrow(0, i, b);
-    const optics::SensorImage img = optics::simulate_sensor(*psf_, sensor_, h, I, Z, gen);
+    const optics::SensorImage img =
+        optics::simulate_sensor(*psf_, sensor_, h, I, Z, image_generators(mix(cfg_.seed, kValSeed + 1), i, b));
     const model::NetOutput out = net_->forward(img.image);
     loss += reconstruction_loss(out.hs, I, out.inv_depth, 1.0 / Z, weights_).total.item<double>() * double(b);
     se += (out.hs - I).pow(2).sum().item<double>();
@@ -185,8 +282,12 @@ ValStats Trainer::validate() {
     px += double(Z.numel());
   }
   net_->train();
+  if (group_) {
+    const auto s = group_->sum({loss, se, count, abs_z, se_z, px}, "validation sums");
+    loss = s[0], se = s[1], count = s[2], abs_z = s[3], se_z = s[4], px = s[5];
+  }
   ValStats v;
-  v.loss = loss / double(n);
+  v.loss = loss / double(n_all);
   v.peak = peak;
   v.hs_psnr_db = 10.0 * std::log10(peak * peak / std::max(se / count, 1e-30));
   v.depth_rmse_m = std::sqrt(se_z / px);
@@ -245,7 +346,19 @@ int64_t Trainer::load_checkpoint(const std::string& path) {
       if (s->exp_avg().sizes() != p.sizes()) input_error(path, k + "exp_avg does not match its parameter");
       state[c10::guts::to_string(p.unsafeGetTensorImpl())] = std::move(s);
     }
-  return dict_get(d, "step", path).item<int64_t>();
+  const int64_t next = dict_get(d, "step", path).item<int64_t>();
+  if (group_) {  // every rank read a checkpoint of the same step, then all take rank 0's values
+    std::vector<double> steps(size_t(world_), 0.0);
+    steps[size_t(rank_)] = double(next);
+    const auto all = group_->sum(steps, "the resumed step");
+    for (int64_t r = 0; r < world_; ++r)
+      if (all[size_t(r)] != all[0])
+        throw DistributedError("rank " + std::to_string(r) + " resumed from step " + c10::str(int64_t(all[size_t(r)])) +
+                               " but rank 0 from step " + c10::str(int64_t(all[0])) + " (" + path +
+                               " differs between the ranks' hosts)");
+    group_->broadcast_(replicated_state(), "the resumed network, DOE and Adam state");
+  }
+  return next;
 }
 
 void Trainer::write_val_pictures(const std::string& dir, int64_t step) {
@@ -253,8 +366,8 @@ void Trainer::write_val_pictures(const std::string& dir, int64_t step) {
   net_->eval();
   const int64_t n = std::min<int64_t>(2, val_.radiance.size(0));
   const torch::Tensor I = val_.radiance.narrow(0, 0, n), Z = val_.depth_m.narrow(0, 0, n);
-  auto gen = at::detail::createCPUGenerator(mix(cfg_.seed, kValSeed + 1));
-  const optics::SensorImage img = optics::simulate_sensor(*psf_, sensor_, doe_.height(), I, Z, gen);
+  const optics::SensorImage img =
+      optics::simulate_sensor(*psf_, sensor_, doe_.height(), I, Z, image_generators(mix(cfg_.seed, kValSeed + 1), 0, n));
   const model::NetOutput out = net_->forward(img.image);
   net_->train();
   const auto bands = cfg_.optics.wavelengths_m();
@@ -290,8 +403,11 @@ void Trainer::run(const std::string& out_dir, bool resume) {
   const auto& T = cfg_.train;
   const std::string ckpt_dir = out_dir + "/checkpoints", val_dir = out_dir + "/val";
   const std::string ckpt = ckpt_dir + "/last.pt", csv = out_dir + "/metrics.csv";
-  make_dirs(ckpt_dir);
-  make_dirs(val_dir);
+  const bool writer = writes_outputs();
+  if (writer) {
+    make_dirs(ckpt_dir);
+    make_dirs(val_dir);
+  }
   int64_t start = 0;
   // Rows of metrics.csv: kept in memory, the file rewritten atomically.
   const std::string header =
@@ -301,7 +417,8 @@ void Trainer::run(const std::string& out_dir, bool resume) {
   if (resume) {
     if (!std::filesystem::exists(ckpt)) input_error(ckpt, "no checkpoint to resume from (--resume)");
     start = load_checkpoint(ckpt);
-    for (const auto& c : read_csv_rows(csv))
+    if (writer)
+      for (const auto& c : read_csv_rows(csv))
       if (c.size() > 1 && std::stoll(c[0]) <= start) {  // rows up to the checkpoint's step were written before it
         rows.push_back(c);
         wall_offset = std::stod(c[1]);
@@ -309,6 +426,7 @@ void Trainer::run(const std::string& out_dir, bool resume) {
     log::info("resuming from " + ckpt + " at step " + std::to_string(start));
   }
   auto write_outputs = [&] {
+    if (!writer) return;
     std::string text = header + "\n";
     std::vector<double> xs, tr, vx, vl, psnr;
     for (const auto& c : rows) {
@@ -326,20 +444,26 @@ void Trainer::run(const std::string& out_dir, bool resume) {
                       {{"PSNR", vx, psnr, {30, 140, 30}}}, false);
   };
 
-  log::Progress progress("train", long(T.steps));
-  progress.set_start(long(start));
+  std::unique_ptr<log::Progress> progress;
+  if (writer) {
+    progress = std::make_unique<log::Progress>("train", long(T.steps));
+    progress->set_start(long(start));
+  }
+  if (group_) log::info("data-parallel: " + std::to_string(world_) + " ranks x " + std::to_string(T.batch_size / world_) +
+                        " patches = global batch " + std::to_string(T.batch_size));
   const auto t0 = std::chrono::steady_clock::now();
   auto wall = [&] { return wall_offset + std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
   // Data loading overlaps compute: the next batch is made while this step runs.
   std::future<Batch> next;
   if (start < T.steps) next = std::async(std::launch::async, [this, start] { return train_batch(start); });
   double rate_t = wall();
+  const double comm_t = group_ ? group_->seconds_communicating() : 0.0;
   int64_t rate_n = 0;
   if (start == 0 && T.steps > 0) {  // where validation starts from
     const ValStats v = validate();
     rows.push_back({"0", "0.000", "", fmt("%.6g", v.loss), "", "", "", "", fmt("%.4f", v.hs_psnr_db),
                     fmt("%.5f", v.depth_rmse_m), fmt("%.5f", v.depth_mae_m)});
-    write_val_pictures(val_dir, 0);
+    if (writer) write_val_pictures(val_dir, 0);
     write_outputs();
   }
   for (int64_t k = start; k < T.steps; ++k) {
@@ -359,17 +483,29 @@ void Trainer::run(const std::string& out_dir, bool resume) {
         row[9] = fmt("%.5f", v.depth_rmse_m), row[10] = fmt("%.5f", v.depth_mae_m);
       }
       rows.push_back(row);
-      if (do_val) write_val_pictures(val_dir, k + 1);
+      if (do_val && writer) write_val_pictures(val_dir, k + 1);
       write_outputs();
     }
-    if ((k + 1) % T.checkpoint_every == 0 || last) save_checkpoint(ckpt, k + 1);
+    if ((k + 1) % T.checkpoint_every == 0 || last) {
+      check_replicas_agree(k + 1);
+      if (writer) save_checkpoint(ckpt, k + 1);
+    }
     const double now = wall();
-    char sfx[96];
-    std::snprintf(sfx, sizeof sfx, "loss %.4g  %.2f s/step", st.loss, (now - rate_t) / double(std::max<int64_t>(rate_n, 1)));
-    progress.set_suffix(sfx);
-    progress.step();
+    if (progress) {
+      char sfx[128];
+      const double per = (now - rate_t) / double(std::max<int64_t>(rate_n, 1));
+      if (group_)
+        std::snprintf(sfx, sizeof sfx, "loss %.4g  %.2f s/step  %.0f%% in collectives", st.loss, per,
+                      100.0 * (group_->seconds_communicating() - comm_t) / std::max(1e-9, now - rate_t));
+      else
+        std::snprintf(sfx, sizeof sfx, "loss %.4g  %.2f s/step", st.loss, per);
+      progress->set_suffix(sfx);
+      progress->step();
+    }
   }
-  progress.finish();
+  if (progress) progress->finish();
+  // Every rank leaves once rank 0's last checkpoint is written.
+  if (group_) group_->barrier("at the end of training");
   if (start >= T.steps) log::info("nothing to do: the checkpoint is at step " + std::to_string(start));
 }
 

@@ -9,6 +9,9 @@
 // Every random choice of step k (patches, lighting, noise) is a function of
 // (seed, k), so a run resumed from a checkpoint repeats the uninterrupted run
 // exactly (same thread count).
+// Data-parallel (train/distributed.h): with a DataParallel group each rank
+// trains on its slice of the same global batch, with averaged gradients and
+// batch statistics of the global batch; rank 0 alone writes files.
 #pragma once
 #include <future>
 #include <memory>
@@ -26,13 +29,15 @@
 #include "optics/material.h"
 #include "optics/psf.h"
 #include "optics/sensor.h"
+#include "train/distributed.h"
 #include "train/loss.h"
 
 namespace hsd::train {
 
 struct Batch {
-  torch::Tensor radiance;  // [B, L, S, S]
-  torch::Tensor depth_m;   // [B, 1, S, S]
+  torch::Tensor radiance;   // [B, L, S, S]
+  torch::Tensor depth_m;    // [B, 1, S, S]
+  int64_t first_index = 0;  // index of image 0 within the global batch (keys its noise draws)
 };
 
 struct StepStats {
@@ -45,28 +50,35 @@ struct ValStats {
 
 class Trainer {
  public:
-  // Optics, DOE, network and optimiser from the config (no data yet).
-  explicit Trainer(const Config& cfg);
+  // Optics, DOE, network and optimiser from the config (no data yet). With a
+  // group, train.batch_size is the global batch and must split evenly over
+  // the ranks; parameters are broadcast from rank 0.
+  explicit Trainer(const Config& cfg, std::shared_ptr<DataParallel> group = nullptr);
 
   // Loads (generating it first if allowed) the dataset: train patches, and
   // train.val_patches fixed validation patches from the val split.
   void attach_data();
-  // The training batch of step k: a function of (seed, k) only.
+  // The training batch of step k: a function of (seed, k) only; with a group,
+  // this rank's slice of it.
   Batch train_batch(int64_t step) const;
   // One optimisation step with index `step` (0-based; sets the rates, seeds the noise).
   StepStats step(const Batch& batch, int64_t step);
-  // Loss and metrics on the fixed validation patches (network in eval mode, fixed noise).
+  // Loss and metrics on the fixed validation patches (network in eval mode,
+  // fixed noise); with a group each rank takes a share and the sums are combined.
   ValStats validate();
 
   // Checkpoint: a torch pickle dict (network, DOE, Adam state, next step; also
   // height_map_m and doe_pitch_m so it serves as a height-map file). Atomic.
   void save_checkpoint(const std::string& path, int64_t next_step) const;
-  // Returns the next step; InputError naming the file for a mismatch.
+  // Returns the next step; InputError naming the file for a mismatch. With a
+  // group every rank reads it (same step required), then takes rank 0's values.
   int64_t load_checkpoint(const std::string& path);
 
   // The whole run with its outputs in out_dir (CONTRACT.md: metrics.csv,
-  // checkpoints/last.pt, config.json; plus curves.png, val/ pictures).
+  // checkpoints/last.pt, config.json; plus curves.png, val/ pictures). With a
+  // group only rank 0 writes; all ranks end together.
   void run(const std::string& out_dir, bool resume);
+  bool writes_outputs() const { return !group_ || group_->rank() == 0; }
 
   torch::Tensor height() const { return doe_.height().detach(); }
   model::HsdNet& net() { return net_; }
@@ -77,7 +89,14 @@ class Trainer {
 
  private:
   void write_val_pictures(const std::string& dir, int64_t step);
+  std::vector<torch::Tensor> trained_parameters() const;  // what Adam updates
+  std::vector<torch::Tensor> replicated_state(bool with_buffers = true) const;  // parameters, buffers, Adam moments
+  // Every checkpoint: the ranks' parameters must agree (they can only drift by
+  // rounding on unlike hosts); a warning and rank 0's values otherwise.
+  void check_replicas_agree(int64_t step);
   Config cfg_;
+  std::shared_ptr<DataParallel> group_;
+  int64_t rank_ = 0, world_ = 1;
   torch::Device device_;
   optics::Material material_;
   std::unique_ptr<optics::PsfSimulator> psf_;

@@ -1,0 +1,88 @@
+// Data-parallel training on torch's c10d: a TCP store for the rendezvous
+// (rank 0 serves it at MASTER_ADDR:MASTER_PORT) and a Gloo process group for
+// the collectives, the engine behind PyTorch's DistributedDataParallel,
+// started with torchrun's environment variables (WORLD_SIZE, RANK,
+// MASTER_ADDR, MASTER_PORT; LOCAL_WORLD_SIZE for the thread count).
+//
+// What data parallelism means in hsd (trainer.cpp uses these pieces):
+//  - the global batch of step k (train.batch_size patches, their lighting and
+//    their noise) is the one a single process draws; rank r takes the slice
+//    [r·b, (r+1)·b), b = batch_size / world_size;
+//  - each rank's loss is the mean over its slice; the gradients of the network
+//    and of the DOE height map are summed over ranks and divided by the world
+//    size, which is the gradient of the global batch's mean loss;
+//  - batch norm uses the global batch's statistics (model/sync_batch_norm.h);
+//  - parameters start identical (broadcast from rank 0), and identical
+//    gradients keep them identical.
+// So W ranks with batch b reproduce one process with batch W·b up to float
+// rounding. A collective that fails (a peer died, so its sockets closed; or it
+// stalled past distributed.timeout_s) throws DistributedError naming this rank
+// and the collective. A broken group is abandoned rather than torn down
+// (destroying a Gloo group with a dead peer can block or abort).
+#pragma once
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <torch/types.h>
+
+#include "common/config.h"
+#include "model/replica_group.h"
+
+namespace hsd::train {
+
+// Who takes part, from the environment (torchrun's convention).
+struct DistributedEnv {
+  int world_size = 1, rank = 0;
+  int local_world_size = 1;  // ranks on this host (LOCAL_WORLD_SIZE; 1 if unset)
+  std::string master_addr;
+  int master_port = 0;
+  bool enabled() const { return world_size > 1; }
+  // None of the variables set (or WORLD_SIZE=1): a single process. InputError
+  // naming the variable for a malformed, missing or inconsistent one.
+  static DistributedEnv from_environment();
+};
+
+class DataParallel final : public model::ReplicaGroup {
+ public:
+  // Joins the group: every rank must call this within distributed.timeout_s.
+  // InputError when rank 0 cannot serve MASTER_PORT; DistributedError when the
+  // ranks do not all meet.
+  DataParallel(const DistributedEnv& env, const DistributedConfig& cfg);
+  ~DataParallel() override;
+  DataParallel(const DataParallel&) = delete;
+  DataParallel& operator=(const DataParallel&) = delete;
+
+  int rank() const override;
+  int world_size() const override;
+  // t summed over ranks, in place (any device; CPU tensors go straight to Gloo).
+  void all_reduce_sum_(torch::Tensor& t, const std::string& what) override;
+  // A few numbers summed over ranks (loss terms, metric sums), in float64.
+  std::vector<double> sum(const std::vector<double>& values, const std::string& what);
+  // Every tensor gets rank 0's values, in place (flat buckets per dtype).
+  void broadcast_(const std::vector<torch::Tensor>& tensors, const std::string& what);
+  // The gradients of `params` summed over ranks and divided by the world size,
+  // in flat buckets of about distributed.bucket_mib (one collective each,
+  // issued together). A parameter without a gradient counts as zero.
+  void average_gradients_(const std::vector<torch::Tensor>& params, const std::string& what);
+  // Rank 0's `text` under `key`, on every rank (rank 0 publishes it, the others
+  // fetch it): e.g. the resolved config, which must agree across ranks.
+  std::string from_rank0(const std::string& key, const std::string& text);
+  // Waits until every rank got here.
+  void barrier(const std::string& what);
+  // Rank 0 announces `key`; the others block in wait_for until it does, up to
+  // timeout_s (long waits such as rank 0 generating the dataset).
+  void announce(const std::string& key);
+  void wait_for(const std::string& key, double timeout_s, const std::string& what);
+
+  // Where the time went: seconds spent waiting in collectives, and their count.
+  double seconds_communicating() const;
+  int64_t collectives() const;
+  std::string describe() const;  // "rank 1 of 2 (127.0.0.1:29500, Gloo)"
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace hsd::train
