@@ -25,6 +25,12 @@ const char* kUsage =
     "  NAME: data  the data path: scene generation, loading with 1 and N threads,\n"
     "              the patch sampler and patch extraction (--scenes 8)\n"
     "  NAME: train seconds per training step and peak memory (--patch 256 --batch 1)\n"
+    "  NAME: dist  data-parallel training against one process on the same global\n"
+    "              batch: --ranks local ranks (Gloo, cores/ranks threads each) with\n"
+    "              global and per-rank batch norm, the same work as independent\n"
+    "              processes (the machine's floor), the share in collectives, and\n"
+    "              the gradient average bucketed vs per tensor\n"
+    "              (--ranks 2 --batch 4 --patch 128)\n"
     "  NAME: reconstruct  seconds per megapixel of the exported reconstructor in tiles,\n"
     "              float32 and bfloat16 (--size 2048 --tile 512 --overlap 32)\n"
     "  NAME: accuracy --out DIR  error against run time of the simulator's knobs\n"
@@ -50,9 +56,10 @@ int run(const AppArgs& args) {
   else if (name == "sim") rc = bench::bench_sim(cfg, args, out);
   else if (name == "data") rc = bench::bench_data(cfg, args, out);
   else if (name == "train") rc = bench::bench_train(cfg, args, out);
+  else if (name == "dist") rc = bench::bench_dist(cfg, args, out);
   else if (name == "reconstruct") rc = bench::bench_reconstruct(cfg, args, out);
   else if (name == "accuracy") rc = bench::bench_accuracy(cfg, args, out);
-  else input_error("hsd_bench " + name, "unknown benchmark (known: psf, sim, data, train, reconstruct, accuracy)");
+  else input_error("hsd_bench " + name, "unknown benchmark (known: psf, sim, data, train, dist, reconstruct, accuracy)");
   out.json["hsd_version"] = HSD_VERSION;
   out.json["config"] = config;
   if (json) std::printf("%s\n", out.json.dump().c_str());
@@ -62,6 +69,6 @@ int run(const AppArgs& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  AppSpec spec{"hsd_bench", kUsage, {"--threads", "--repeats", "--patch", "--bands", "--depths", "--psf", "--pupil", "--scenes", "--batch", "--size", "--tile", "--overlap", "--band-stride", "--ref-oversampling", "--ref-spectral"}, {"--json", "--no-baseline"}, false, false};
+  AppSpec spec{"hsd_bench", kUsage, {"--threads", "--repeats", "--patch", "--bands", "--depths", "--psf", "--pupil", "--scenes", "--batch", "--size", "--tile", "--overlap", "--band-stride", "--ref-oversampling", "--ref-spectral", "--ranks", "--child-mode", "--child-result", "--child-rank"}, {"--json", "--no-baseline"}, false, false};
   return run_app(spec, argc, argv, run);
 }

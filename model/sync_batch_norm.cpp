@@ -15,7 +15,11 @@ torch::Tensor per_channel(const torch::Tensor& v) { return v.view({1, -1, 1, 1})
 // The normalisation over all replicas' samples, with its own backward (the
 // batch statistics couple every sample of the global batch).
 struct GlobalBatchNorm : torch::autograd::Function<GlobalBatchNorm> {
-  // Returns y; `stats` receives (global mean [C], biased global variance [C], N) in float64.
+  // Returns y; `stats_out` receives (global mean [C], biased global variance [C], N) in float64.
+  // The passes over x are torch's fused CPU kernels: local statistics
+  // (batch_norm_update_stats), normalisation with given statistics (eval-mode
+  // batch_norm) and its backward; only the global-statistics term of the
+  // backward is added by hand (one in-place pass).
   static torch::Tensor forward(AutogradContext* ctx, torch::Tensor x, torch::Tensor weight, torch::Tensor bias,
                                ReplicaGroup* group, double eps, torch::Tensor stats_out) {
     const int64_t C = x.size(1), W = group->world_size(), r = group->rank();
@@ -23,7 +27,7 @@ struct GlobalBatchNorm : torch::autograd::Function<GlobalBatchNorm> {
     // Each replica fills its own row; one sum gathers them all.
     torch::Tensor rows = torch::zeros({W, 2 * C + 1}, x.options().dtype(torch::kFloat64));
     if (n_local > 0) {
-      const auto [var_l, mean_l] = torch::var_mean(x, {0, 2, 3}, /*unbiased=*/false);
+      const auto [mean_l, var_l] = torch::batch_norm_update_stats(x, {}, {}, 0.0);  // biased variance
       rows[r].narrow(0, 0, C).copy_(mean_l);
       rows[r].narrow(0, C, C).copy_(var_l);
     }
@@ -39,28 +43,34 @@ struct GlobalBatchNorm : torch::autograd::Function<GlobalBatchNorm> {
     stats_out.narrow(0, C, C).copy_(var);
     stats_out[2 * C] = N;
 
-    const torch::Tensor invstd = (var + eps).rsqrt().to(x.scalar_type());
-    const torch::Tensor xhat = (x - per_channel(mean.to(x.scalar_type()))) * per_channel(invstd);
-    ctx->save_for_backward({xhat, invstd, weight});
+    const torch::Tensor mean_x = mean.to(x.scalar_type()), var_x = var.to(x.scalar_type());
+    ctx->save_for_backward({x, weight, mean_x, var_x});
     ctx->saved_data["N"] = N;
+    ctx->saved_data["eps"] = eps;
     ctx->saved_data["group"] = reinterpret_cast<int64_t>(group);
-    return xhat * per_channel(weight) + per_channel(bias);
+    // (x − μ)/√(σ² + ε) · γ + β with the given μ, σ²: eval-mode batch norm.
+    return torch::batch_norm(x, weight, bias, mean_x, var_x, /*training=*/false, 0.0, eps, false);
   }
 
   static variable_list backward(AutogradContext* ctx, variable_list grads) {
     const auto saved = ctx->get_saved_variables();
-    const torch::Tensor &xhat = saved[0], &invstd = saved[1], &weight = saved[2];
-    const double N = ctx->saved_data["N"].toDouble();
+    const torch::Tensor &x = saved[0], &weight = saved[1], &mean = saved[2], &var = saved[3];
+    const double N = ctx->saved_data["N"].toDouble(), eps = ctx->saved_data["eps"].toDouble();
     auto* group = reinterpret_cast<ReplicaGroup*>(ctx->saved_data["group"].toInt());
     const torch::Tensor g = grads[0].contiguous();
     const int64_t C = g.size(1);
-    const torch::Tensor sum_g = g.sum({0, 2, 3}), sum_gx = (g * xhat).sum({0, 2, 3});
+    const torch::Tensor invstd = (var + eps).rsqrt();
+    // With μ, σ² held fixed: ∂x = g γ/√(σ²+ε), ∂γ = Σ g x̂, ∂β = Σ g (this replica's sums).
+    auto [dx, sum_gx, sum_g] = torch::native_batch_norm_backward(g, x, weight, mean, var, mean, invstd, /*train=*/false,
+                                                                eps, {true, true, true});
     torch::Tensor sums = torch::cat({sum_g, sum_gx}).to(torch::kFloat64);
     group->all_reduce_sum_(sums, "batch-norm gradient sums");
-    const torch::Tensor mean_g = (sums.narrow(0, 0, C) / N).to(g.scalar_type());
-    const torch::Tensor mean_gx = (sums.narrow(0, C, C) / N).to(g.scalar_type());
-    const torch::Tensor dx =
-        per_channel(weight * invstd) * (g - per_channel(mean_g) - xhat * per_channel(mean_gx));
+    // μ and σ² depend on every sample: ∂x −= γ/√(σ²+ε) (Σg/N + x̂ Σ(g x̂)/N), sums over all replicas,
+    // = (x − μ) k2 + k1 with k1 = γ invstd Σg/N, k2 = γ invstd² Σ(g x̂)/N.
+    const torch::Tensor wi = (weight * invstd).to(torch::kFloat64), inv = invstd.to(torch::kFloat64);
+    const torch::Tensor k1 = wi * sums.narrow(0, 0, C) / N, k2 = wi * inv * sums.narrow(0, C, C) / N;
+    dx.addcmul_(x, per_channel(k2.to(x.scalar_type())), -1.0);
+    dx.add_(per_channel((mean.to(torch::kFloat64) * k2 - k1).to(x.scalar_type())));
     // γ and β: this replica's share; data-parallel training averages them with
     // the other gradients.
     return {dx, sum_gx, sum_g, torch::Tensor(), torch::Tensor(), torch::Tensor()};

@@ -14,9 +14,9 @@
 #include <cstdlib>
 #include <fstream>
 #include <map>
-#include <netinet/in.h>
-#include <sys/socket.h>
 #include <thread>
+
+#include <torch/csrc/distributed/c10d/TCPStore.hpp>
 
 #include "common/error.h"
 #include "helpers.h"
@@ -30,19 +30,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// A TCP port nobody listens on right now.
-int free_port() {
-  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
-  sockaddr_in a{};
-  a.sin_family = AF_INET;
-  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  a.sin_port = 0;
-  socklen_t n = sizeof a;
-  ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a);
-  ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &n);
-  ::close(fd);
-  return ntohs(a.sin_port);
-}
+using train::free_local_port;
 
 // Sets (or, for nullptr, unsets) environment variables; restores them after.
 struct EnvGuard {
@@ -66,8 +54,8 @@ struct EnvGuard {
 // (one TCP store, one Gloo group). Catch2 is not thread-safe: bodies only
 // compute; the caller asserts after the join. The first exception is rethrown.
 template <class F>
-void run_ranks(int world, const DistributedConfig& cfg, F body) {
-  const int port = free_port();
+void run_ranks(int world, const DistributedConfig& cfg, F body, int agent_port = 0) {
+  const int port = agent_port > 0 ? agent_port : free_local_port();
   std::vector<std::thread> threads;
   std::vector<std::exception_ptr> errors(static_cast<size_t>(world));
   for (int r = 0; r < world; ++r)
@@ -75,6 +63,7 @@ void run_ranks(int world, const DistributedConfig& cfg, F body) {
       try {
         train::DistributedEnv e;
         e.world_size = world, e.rank = r, e.master_addr = "127.0.0.1", e.master_port = port;
+        e.agent_store = agent_port > 0;
         auto g = std::make_shared<train::DataParallel>(e, cfg);
         body(r, g);
       } catch (...) {
@@ -182,6 +171,28 @@ TEST_CASE("distributed: sums, broadcasts and bucketed gradient averages between 
   }
 }
 
+TEST_CASE("distributed: under torchrun's agent store every rank joins as a client", "[distributed]") {
+  EnvGuard env;
+  env.set("TORCHELASTIC_USE_AGENT_STORE", "True");
+  for (const char* k : {"WORLD_SIZE", "RANK", "MASTER_ADDR", "MASTER_PORT"}) env.set(k, nullptr);
+  env.set("WORLD_SIZE", "2"), env.set("RANK", "0"), env.set("MASTER_ADDR", "127.0.0.1"), env.set("MASTER_PORT", "29500");
+  CHECK(train::DistributedEnv::from_environment().agent_store);
+  // The agent: a store served by someone else on the port (rank 0 serving it too would fail: port in use).
+  c10d::TCPStoreOptions so;
+  so.port = uint16_t(free_local_port());
+  so.isServer = true;
+  so.waitWorkers = false;
+  so.timeout = std::chrono::milliseconds(30000);
+  auto agent = c10::make_intrusive<c10d::TCPStore>("127.0.0.1", so);
+  DistributedConfig cfg;
+  cfg.timeout_s = 30;
+  std::vector<std::vector<double>> sums(2);
+  run_ranks(2, cfg, [&](int r, std::shared_ptr<train::DataParallel> g) { sums[size_t(r)] = g->sum({double(r + 1)}, "a number"); },
+            so.port);
+  CHECK(sums[0] == std::vector<double>{3.0});
+  CHECK(sums[1] == std::vector<double>{3.0});
+}
+
 TEST_CASE("distributed: batch norm over two ranks equals batch norm of the whole batch (float64)", "[distributed][model]") {
   torch::manual_seed(11);
   const int64_t C = 3;
@@ -263,7 +274,8 @@ Config tiny_dp_training(const std::string& root, std::vector<std::string> extra 
                              "train.warmup_steps=0", "train.decay=none", "train.val_patches=3", "data.patch_size_px=16",
                              "data.generator.train_scenes=2", "data.generator.val_scenes=1", "data.generator.test_scenes=0",
                              "data.generator.colorchecker=false", "data.generator.width_px=40", "data.generator.height_px=32",
-                             "threads=1", "distributed.timeout_s=60"};
+                             "threads=1", "distributed.timeout_s=60", "sensor.noise_std=0.02",
+                             "sensor.photons_at_saturation=2000"};  // noise on: its draws must follow the images
   for (auto& e : extra) o.push_back(e);
   return load_config(test::source_path("configs/tiny.json"), o);
 }
@@ -351,7 +363,7 @@ const std::string kTinyRun =
     " --set train.log_every=1 --set train.checkpoint_every=2 --set data.patch_size_px=16"
     " --set data.generator.train_scenes=2 --set data.generator.val_scenes=1 --set data.generator.test_scenes=0"
     " --set data.generator.colorchecker=false --set data.generator.width_px=40 --set data.generator.height_px=32"
-    " --set threads=1";
+    " --set threads=1 --set sensor.noise_std=0.02 --set sensor.photons_at_saturation=2000";
 
 // step -> (train_loss, val_loss) of a metrics.csv (NaN where empty).
 std::map<int, std::pair<double, double>> losses(const fs::path& csv) {
@@ -430,22 +442,25 @@ TEST_CASE("hsd_train: a killed or stalled rank makes the other exit with an erro
   const std::string bin = std::string(HSD_BIN_DIR) + "/hsd_train";
   const std::string args = kTinyRun + " --set data.root=" + (base / "data").string() + " --set train.steps=100000";
   // Rank 0 and rank 1 started by hand (different --out, so rank 1's silence shows); once rank 0 wrote a
-  // checkpoint, rank 1 gets `signal`; the script prints rank 0's exit code and how long it took after the signal.
-  auto scenario = [&](const std::string& name, const std::string& signal, double timeout_s) {
+  // checkpoint, the victim gets `signal`; the script prints the survivor's exit code and how long it took
+  // after the signal (ms).
+  auto scenario = [&](const std::string& name, const std::string& signal, int victim, double timeout_s) {
     const fs::path dir = base / name;
-    const std::string env = "WORLD_SIZE=2 MASTER_ADDR=127.0.0.1 MASTER_PORT=" + std::to_string(free_port());
+    const int survivor = 1 - victim;
+    const std::string env = "WORLD_SIZE=2 MASTER_ADDR=127.0.0.1 MASTER_PORT=" + std::to_string(free_local_port());
     const std::string sets = args + " --set distributed.timeout_s=" + std::to_string(timeout_s);
-    const std::string script = "cd " + std::string(HSD_SOURCE_DIR) + "\n" + env + " RANK=0 " + bin + sets + " --out " +
-                               (dir / "r0").string() + " 2> " + (dir / "r0.err").string() + " > /dev/null &\np0=$!\n" + env +
-                               " RANK=1 " + bin + sets + " --out " + (dir / "r1").string() + " > /dev/null 2>&1 &\np1=$!\n" +
-                               "for i in $(seq 1 600); do [ -f " + (dir / "r0/checkpoints/last.pt").string() +
-                               " ] && break; sleep 0.1; done\nkill -" + signal + " $p1\nt0=$(date +%s%N)\nwait $p0\n" +
-                               "c=$?\nt1=$(date +%s%N)\nkill -9 $p1 2>/dev/null\nwait $p1 2>/dev/null\n" +
-                               "echo \"$c $(( (t1 - t0) / 1000000 ))\"\n";
+    std::string script = "cd " + std::string(HSD_SOURCE_DIR) + "\n";
+    for (int r = 0; r < 2; ++r)
+      script += env + " RANK=" + std::to_string(r) + " " + bin + sets + " --out " + (dir / ("r" + std::to_string(r))).string() +
+                " 2> " + (dir / ("r" + std::to_string(r) + ".err")).string() + " > /dev/null &\np" + std::to_string(r) + "=$!\n";
+    script += "for i in $(seq 1 600); do [ -f " + (dir / "r0/checkpoints/last.pt").string() +
+              " ] && break; sleep 0.1; done\nkill -" + signal + " $p" + std::to_string(victim) + "\nt0=$(date +%s%N)\nwait $p" +
+              std::to_string(survivor) + "\nc=$?\nt1=$(date +%s%N)\nkill -9 $p" + std::to_string(victim) +
+              " 2>/dev/null\nwait $p" + std::to_string(victim) + " 2>/dev/null\necho \"$c $(( (t1 - t0) / 1000000 ))\"\n";
     fs::create_directories(dir);
     std::ofstream(dir / "scenario.sh") << script;
     const auto [out, code] = test::capture("bash " + (dir / "scenario.sh").string());
-    std::ifstream ef(dir / "r0.err");
+    std::ifstream ef(dir / ("r" + std::to_string(survivor) + ".err"));
     const std::string err((std::istreambuf_iterator<char>(ef)), std::istreambuf_iterator<char>());
     INFO(name << ": " << out << "\n" << err);
     std::istringstream ss(out);
@@ -454,7 +469,7 @@ TEST_CASE("hsd_train: a killed or stalled rank makes the other exit with an erro
     ss >> rc >> ms;
     const double secs = ms / 1000.0;
     CHECK(rc == 4);
-    CHECK_THAT(err, Catch::Contains("rank 0 of 2"));
+    CHECK_THAT(err, Catch::Contains("rank " + std::to_string(survivor) + " of 2"));
     CHECK_THAT(err, Catch::Contains("failed"));
     CHECK(secs >= 0.0);
     CHECK(secs < timeout_s + 10.0);
@@ -462,10 +477,11 @@ TEST_CASE("hsd_train: a killed or stalled rank makes the other exit with an erro
     CHECK_FALSE(fs::exists(dir / "r1"));  // rank 1 wrote nothing
     return secs;
   };
-  const double killed = scenario("killed", "9", 120.0);  // sockets close: at once, long before the timeout
-  CHECK(killed < 10.0);
-  const double stalled = scenario("stalled", "STOP", 3.0);  // alive but silent: the timeout
-  CHECK(stalled >= 2.0);
+  // A dead rank's sockets close: the other stops at once, long before the timeout.
+  CHECK(scenario("killed_rank1", "9", 1, 120.0) < 10.0);
+  CHECK(scenario("killed_rank0", "9", 0, 120.0) < 10.0);  // rank 0 also served the store
+  // Alive but silent: the timeout.
+  CHECK(scenario("stalled", "STOP", 1, 3.0) >= 2.0);
 }
 
 TEST_CASE("hsd_train: bad distributed settings exit 2 with one line naming the variable or key", "[app][distributed]") {
@@ -487,7 +503,7 @@ TEST_CASE("hsd_train: bad distributed settings exit 2 with one line naming the v
   CHECK_THAT(o2, Catch::Contains("train.batch_size"));
   CHECK(count_lines(o2) == 2);
   // Ranks with different configs: the odd one out names the key; its peer reports the lost rank.
-  const int port = free_port();
+  const int port = free_local_port();
   const std::string env = "WORLD_SIZE=2 MASTER_ADDR=127.0.0.1 MASTER_PORT=" + std::to_string(port);
   const auto [o3, c3] = test::capture("cd " + std::string(HSD_SOURCE_DIR) + " && (env " + env + " RANK=0 " + bin + args +
                                       " > /dev/null 2>&1; echo \"rank0=$?\") & (cd " + std::string(HSD_SOURCE_DIR) +

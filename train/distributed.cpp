@@ -8,6 +8,9 @@
 #include <chrono>
 #include <cstdlib>
 #include <map>
+#include <netinet/in.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include "common/error.h"
 #include "common/log.h"
@@ -49,6 +52,21 @@ bool is_loopback(const std::string& addr) {
 
 }  // namespace
 
+int free_local_port() {
+  const int fd = ::socket(AF_INET, SOCK_STREAM, 0);
+  if (fd < 0) throw DistributedError("no socket for finding a free port");
+  sockaddr_in a{};
+  a.sin_family = AF_INET;
+  a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+  a.sin_port = 0;  // the kernel picks
+  socklen_t n = sizeof a;
+  const bool ok = ::bind(fd, reinterpret_cast<sockaddr*>(&a), sizeof a) == 0 &&
+                  ::getsockname(fd, reinterpret_cast<sockaddr*>(&a), &n) == 0;
+  ::close(fd);
+  if (!ok) throw DistributedError("could not find a free TCP port on 127.0.0.1");
+  return ntohs(a.sin_port);
+}
+
 DistributedEnv DistributedEnv::from_environment() {
   DistributedEnv e;
   const bool any = getenv_set("WORLD_SIZE") || getenv_set("RANK") || getenv_set("MASTER_ADDR") || getenv_set("MASTER_PORT");
@@ -69,6 +87,8 @@ DistributedEnv DistributedEnv::from_environment() {
   if (!getenv_set("MASTER_PORT")) input_error("environment variable MASTER_PORT", "not set (a free TCP port on rank 0's host)");
   e.master_port = env_int("MASTER_PORT", 1, 65535);
   if (getenv_set("LOCAL_WORLD_SIZE")) e.local_world_size = env_int("LOCAL_WORLD_SIZE", 1, e.world_size);
+  const char* agent = getenv_set("TORCHELASTIC_USE_AGENT_STORE");
+  e.agent_store = agent != nullptr && std::string(agent) == "True";
   return e;
 }
 
@@ -108,9 +128,9 @@ DataParallel::DataParallel(const DistributedEnv& env, const DistributedConfig& c
   const std::string where = env.master_addr + ":" + std::to_string(env.master_port);
   c10d::TCPStoreOptions so;
   so.port = uint16_t(env.master_port);
-  so.isServer = env.rank == 0;
+  so.isServer = env.rank == 0 && !env.agent_store;
   so.numWorkers = size_t(env.world_size);
-  so.waitWorkers = true;
+  so.waitWorkers = !env.agent_store;
   so.timeout = timeout;
   try {
     impl_->store = c10::make_intrusive<c10d::TCPStore>(env.master_addr, so);
@@ -236,6 +256,8 @@ void DataParallel::average_gradients_(const std::vector<torch::Tensor>& params, 
   impl_->wait(works, "averaging " + what + " (" + std::to_string(buckets.size()) + " buckets)");
   for (const auto& bk : buckets) unpack(bk, grads, 1.0 / double(world_size()));
 }
+
+void DataParallel::set_bucket_mib(double mib) { impl_->cfg.bucket_mib = mib; }
 
 void DataParallel::barrier(const std::string& what) { impl_->wait({impl_->pg->barrier()}, "waiting for all ranks " + what); }
 

@@ -37,11 +37,18 @@ struct DistributedEnv {
   int local_world_size = 1;  // ranks on this host (LOCAL_WORLD_SIZE; 1 if unset)
   std::string master_addr;
   int master_port = 0;
+  // torchrun's agent already serves the store at MASTER_ADDR:MASTER_PORT
+  // (TORCHELASTIC_USE_AGENT_STORE=True): every rank, rank 0 too, is a client.
+  bool agent_store = false;
   bool enabled() const { return world_size > 1; }
   // None of the variables set (or WORLD_SIZE=1): a single process. InputError
   // naming the variable for a malformed, missing or inconsistent one.
   static DistributedEnv from_environment();
 };
+
+// A TCP port on 127.0.0.1 that nobody listens on right now (one-host runs,
+// benchmarks and tests pick their MASTER_PORT with it).
+int free_local_port();
 
 class DataParallel final : public model::ReplicaGroup {
  public:
@@ -65,6 +72,7 @@ class DataParallel final : public model::ReplicaGroup {
   // in flat buckets of about distributed.bucket_mib (one collective each,
   // issued together). A parameter without a gradient counts as zero.
   void average_gradients_(const std::vector<torch::Tensor>& params, const std::string& what);
+  void set_bucket_mib(double mib);  // benchmarks: tiny buckets = one collective per tensor
   // Rank 0's `text` under `key`, on every rank (rank 0 publishes it, the others
   // fetch it): e.g. the resolved config, which must agree across ranks.
   std::string from_rank0(const std::string& key, const std::string& text);

@@ -16,6 +16,7 @@ int bench_psf(const Config& cfg, const AppArgs& args, BenchOutput& out);
 int bench_sim(Config cfg, const AppArgs& args, BenchOutput& out);
 int bench_data(Config cfg, const AppArgs& args, BenchOutput& out);
 int bench_train(Config cfg, const AppArgs& args, BenchOutput& out);
+int bench_dist(Config cfg, const AppArgs& args, BenchOutput& out);
 int bench_reconstruct(Config cfg, const AppArgs& args, BenchOutput& out);
 int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out);
 
