@@ -16,6 +16,8 @@
 #include <map>
 #include <thread>
 
+#include <nlohmann/json.hpp>
+
 #include <torch/csrc/distributed/c10d/TCPStore.hpp>
 
 #include "common/error.h"
@@ -519,4 +521,25 @@ TEST_CASE("hsd_train: bad distributed settings exit 2 with one line naming the v
   const auto [o5, c5] = test::capture(launcher("--nproc 2 -- " + args + " --set train.batch_size=3 2>&1"));
   CHECK(c5 == 2);
   CHECK_THAT(o5, Catch::Contains("train.batch_size"));
+}
+
+TEST_CASE("hsd_bench dist: one process against two ranks and the floor, as one JSON object", "[app][distributed][bench]") {
+  const std::string sets = " --config configs/tiny.json --set model.base_width=4 --set model.levels=2 --patch 16 --repeats 1";
+  const auto [out, code] = test::capture("cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) +
+                                         "/hsd_bench dist --json --ranks 2 --batch 2" + sets + " 2>/dev/null");
+  INFO(out);
+  REQUIRE(code == 0);
+  CHECK(std::count(out.begin(), out.end(), '\n') == 1);  // exactly one object: the ranks' output went elsewhere
+  const auto j = nlohmann::json::parse(out);
+  for (const char* k : {"seconds_per_step_one_process", "seconds_per_step_ranks_sync_bn", "seconds_per_step_ranks_local_bn",
+                        "seconds_per_step_independent", "gradient_average_bucketed_seconds", "gradient_average_per_tensor_seconds"})
+    CHECK(j.at(k).get<double>() > 0.0);
+  CHECK(j.at("ranks").get<int>() == 2);
+  CHECK(j.at("fraction_in_collectives_sync_bn").get<double>() > 0.0);
+  // 25-MiB buckets: one collective per dtype (the float32 network, the float64 height map); per tensor: one each.
+  CHECK(j.at("gradient_average_bucketed_collectives").get<int>() == 2);
+  CHECK(j.at("gradient_average_per_tensor_collectives").get<int>() == j.at("gradient_tensors").get<int>());
+  const test::Run bad = test::run("hsd_bench dist --ranks 2 --batch 3" + sets);
+  CHECK(bad.code == 2);
+  CHECK_THAT(bad.err, Catch::Contains("--batch"));
 }
