@@ -42,8 +42,9 @@ const char* kUsage =
 
 // Every rank must train the same thing: its resolved config must equal rank
 // 0's, except what may differ per host (threads, data.root, loader threads).
-void check_same_config(const Config& cfg, train::DataParallel& group) {
+void check_same_config(const Config& cfg, bool resume, train::DataParallel& group) {
   Json mine = cfg.resolved;
+  mine["--resume"] = resume;  // a rank resuming while another starts afresh would run other collectives
   mine["threads"] = 0;
   if (mine.contains("data")) mine["data"]["root"] = "", mine["data"]["loader_threads"] = 0;
   const Json theirs = Json::parse(group.from_rank0("config", mine.dump()));
@@ -53,6 +54,9 @@ void check_same_config(const Config& cfg, train::DataParallel& group) {
   const std::string path = first.value("path", std::string("/"));
   std::string key = path.substr(1);
   std::replace(key.begin(), key.end(), '/', '.');
+  if (key == "--resume")
+    input_error("flag --resume", "rank " + std::to_string(group.rank()) + (resume ? " resumes" : " does not resume") +
+                                     ", rank 0 " + (resume ? "does not" : "does") + " (all ranks must)");
   const Json::json_pointer ptr(path);
   input_error("config key " + key, "rank " + std::to_string(group.rank()) + " has " +
                                        (mine.contains(ptr) ? mine.at(ptr).dump() : std::string("nothing")) + ", rank 0 has " +
@@ -80,7 +84,7 @@ int run(const AppArgs& args) {
   if (env.enabled()) {
     group = std::make_shared<train::DataParallel>(env, cfg.distributed);
     log::info("joined: " + group->describe() + ", " + std::to_string(threads) + " threads per rank");
-    check_same_config(cfg, *group);
+    check_same_config(cfg, resume, *group);
   }
   train::Trainer trainer(cfg, group);
   trainer.attach_data();

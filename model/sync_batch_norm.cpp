@@ -35,7 +35,7 @@ struct GlobalBatchNorm : torch::autograd::Function<GlobalBatchNorm> {
     group->all_reduce_sum_(rows, "batch-norm statistics");
     const torch::Tensor n = rows.select(1, 2 * C).unsqueeze(1);  // [W, 1]
     const double N = n.sum().item<double>();
-    if (!(N > 0)) throw std::runtime_error("synchronised batch norm: the global batch is empty");
+    TORCH_CHECK(N > 1, "batch norm needs more than 1 value per channel when training; the global batch has ", N);
     const torch::Tensor means = rows.narrow(1, 0, C), vars = rows.narrow(1, C, C);
     const torch::Tensor mean = (n * means).sum(0) / N;
     const torch::Tensor var = (n * (vars + (means - mean).pow(2))).sum(0) / N;
@@ -97,6 +97,9 @@ torch::Tensor SyncBatchNorm2dImpl::forward(const torch::Tensor& x) {
   if (is_training()) {
     torch::NoGradGuard no_grad;
     num_batches_tracked += 1;
+    const bool alone = !group_ || group_->world_size() <= 1;
+    TORCH_CHECK(!alone || x.numel() / channels_ > 1, "batch norm needs more than 1 value per channel when training, got ",
+                x.sizes());
   }
   if (!is_training() || !group_ || group_->world_size() <= 1)  // torch::nn::BatchNorm2d's own call
     return torch::batch_norm(x, weight, bias, running_mean, running_var, is_training(), momentum_, eps_,

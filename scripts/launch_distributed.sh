@@ -10,16 +10,22 @@
 #
 # One host, 2 ranks (each gets cores / 2 threads when the config says threads = 0):
 #   scripts/launch_distributed.sh --nproc 2 -- --config configs/quick.json --out out/quick/dp
-# Two hosts with 2 ranks each (run on both; data.root and --out may be local to each host;
-# only global rank 0 writes):
+# Two hosts with 2 ranks each (run on both). Only global rank 0 writes (to its --out); every
+# host needs the dataset in data.root (a shared folder or a copy: only rank 0 generates one)
+# and, for --resume, DIR/checkpoints/last.pt:
 #   host0$ scripts/launch_distributed.sh --nproc 2 --nnodes 2 --node-rank 0 --master-addr host0 --master-port 29500 -- ...
 #   host1$ scripts/launch_distributed.sh --nproc 2 --nnodes 2 --node-rank 1 --master-addr host0 --master-port 29500 -- ...
 set -uo pipefail
-cd "$(dirname "$0")/.."
+# Relative paths in hsd_train's arguments stay relative to where this is run.
+root="$(cd "$(dirname "$0")/.." && pwd)"
 
-nproc=2 nnodes=1 node_rank=0 addr=127.0.0.1 port="" grace=10
-bin="${HSD_TRAIN_BIN:-build/bin/hsd_train}"
+nproc=2 nnodes=1 node_rank=0 addr="" port="" grace=10
+bin="${HSD_TRAIN_BIN:-$root/build/bin/hsd_train}"
 die() { echo "launch_distributed: error: $*" >&2; exit 2; }
+# wait -n -p (bash 5.1) tells which rank ended; older shells would miss failures.
+if [ "${BASH_VERSINFO[0]}" -lt 5 ] || { [ "${BASH_VERSINFO[0]}" -eq 5 ] && [ "${BASH_VERSINFO[1]}" -lt 1 ]; }; then
+  die "needs bash >= 5.1 (this is $BASH_VERSION)"
+fi
 is_int() { [[ "$1" =~ ^[0-9]+$ ]]; }
 while [ $# -gt 0 ]; do
   case "$1" in
@@ -35,13 +41,17 @@ while [ $# -gt 0 ]; do
   esac
 done
 [ "$node_rank" -lt "$nnodes" ] || die "--node-rank $node_rank is not below --nnodes $nnodes"
+if [ -z "$addr" ]; then
+  [ "$nnodes" -eq 1 ] || die "--master-addr is required with --nnodes > 1 (the host of node 0)"
+  addr=127.0.0.1
+fi
 [ -x "$bin" ] || die "$bin not found: build first (bash scripts/build.sh)"
 if [ -z "$port" ]; then
   if [ "$nnodes" -gt 1 ]; then
     port=29500
-  else  # one host: a free port, so several runs can share the machine
+  else  # one host: a free port below Linux's ephemeral range, so several runs can share the machine
     for _ in $(seq 1 50); do
-      port=$((20000 + RANDOM % 20000))
+      port=$((20000 + RANDOM % 12000))
       (exec 3<>"/dev/tcp/127.0.0.1/$port") 2>/dev/null || break
     done
   fi
@@ -49,10 +59,19 @@ fi
 
 world=$((nproc * nnodes))
 pids=()
+# TERM to every rank still running, then KILL to any that ignore it for 5 s.
 stop_all() {
   for p in "${pids[@]}"; do kill -TERM "$p" 2>/dev/null; done
+  for ((t = 0; t < 50; ++t)); do
+    alive=0
+    for p in "${pids[@]}"; do kill -0 "$p" 2>/dev/null && alive=1; done
+    [ "$alive" -eq 0 ] && return
+    sleep 0.1
+  done
+  for p in "${pids[@]}"; do kill -KILL "$p" 2>/dev/null; done
 }
-trap 'stop_all; exit 130' INT TERM
+trap 'stop_all; exit 130' INT
+trap 'stop_all; exit 143' TERM
 echo "launch_distributed: $nproc ranks on this host (node $node_rank of $nnodes, world $world), master $addr:$port" >&2
 for ((l = 0; l < nproc; ++l)); do
   r=$((node_rank * nproc + l))
@@ -74,7 +93,11 @@ while [ "${#live[@]}" -gt 0 ]; do
   finished=""
   wait -n -p finished "${live[@]}"
   code=$?
-  [ -n "$finished" ] || break  # nothing left to wait for
+  if [ -z "$finished" ]; then  # should not happen with bash >= 5.1: never report success blindly
+    echo "launch_distributed: lost track of the ranks (wait returned $code)" >&2
+    stop_all
+    exit 1
+  fi
   next=()
   for p in "${live[@]}"; do [ "$p" != "$finished" ] && next+=("$p"); done
   live=("${next[@]+"${next[@]}"}")

@@ -21,6 +21,7 @@
 #include <torch/csrc/distributed/c10d/TCPStore.hpp>
 
 #include "common/error.h"
+#include "common/log.h"
 #include "helpers.h"
 #include "model/sync_batch_norm.h"
 #include "optics/sensor_noise.h"
@@ -125,8 +126,45 @@ TEST_CASE("distributed: torchrun's environment, with one clear error per bad var
   env.set("MASTER_ADDR", "h");
   env.set("WORLD_SIZE", "two");
   CHECK(error_naming("WORLD_SIZE"));
+  // WORLD_SIZE decides: stray RANK/MASTER_* (clusters export them) leave a single process, with a warning.
   env.set("WORLD_SIZE", nullptr);
-  CHECK(error_naming("WORLD_SIZE"));  // RANK without WORLD_SIZE
+  const int warnings = log::warning_count();
+  CHECK_FALSE(train::DistributedEnv::from_environment().enabled());
+  CHECK(log::warning_count() == warnings + 1);
+}
+
+TEST_CASE("distributed: the others wait for rank 0's long work while it beats, and not for a silent rank 0",
+          "[distributed]") {
+  DistributedConfig cfg;
+  cfg.timeout_s = 3.0;  // also bounds the rendezvous: not shorter on a loaded machine
+  // Work twice as long as the timeout: the heartbeat keeps the others waiting.
+  std::vector<double> waited(2);
+  run_ranks(2, cfg, [&](int r, std::shared_ptr<train::DataParallel> g) {
+    const auto t0 = std::chrono::steady_clock::now();
+    g->run_on_rank0("slow", [] { std::this_thread::sleep_for(std::chrono::milliseconds(6000)); }, "to finish slow work");
+    waited[size_t(r)] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    g->barrier("after the slow work");  // rank 0 serves the store: it stays until rank 1 saw the result
+  });
+  CHECK(waited[1] >= 5.9);
+  // Rank 0 never starts the work (as if hung before it): rank 1 gives up after the timeout.
+  std::string message;
+  double seconds = 0;
+  std::atomic<bool> done{false};
+  run_ranks(2, cfg, [&](int r, std::shared_ptr<train::DataParallel> g) {
+    if (r == 0) {
+      while (!done) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      return;
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    message = error_of([&] { g->run_on_rank0("never", [] {}, "to provide the dataset"); });
+    seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    done = true;
+  });
+  INFO(message);
+  CHECK_THAT(message, Catch::Contains("rank 1 of 2"));
+  CHECK_THAT(message, Catch::Contains("no sign of life from rank 0"));
+  CHECK(seconds >= 3.0);
+  CHECK(seconds < 10.0);
 }
 
 TEST_CASE("distributed: sums, broadcasts and bucketed gradient averages between two ranks", "[distributed]") {
@@ -335,7 +373,7 @@ TEST_CASE("distributed: two trainer ranks with batch 2 match one trainer with ba
 
 TEST_CASE("distributed: a rank that stops answering ends the other's collective within the timeout", "[distributed]") {
   DistributedConfig cfg;
-  cfg.timeout_s = 1.5;
+  cfg.timeout_s = 3.0;  // also bounds the rendezvous: not shorter on a loaded machine
   std::string message;
   double seconds = 0;
   std::atomic<bool> done{false};
@@ -352,8 +390,8 @@ TEST_CASE("distributed: a rank that stops answering ends the other's collective 
   INFO(message);
   CHECK_THAT(message, Catch::Contains("rank 0 of 2"));
   CHECK_THAT(message, Catch::Contains("the loss of step 7"));
-  CHECK(seconds >= 1.0);
-  CHECK(seconds < 10.0);
+  CHECK(seconds >= 2.5);
+  CHECK(seconds < 12.0);
 }
 
 // ---- hsd_train as users launch it -----------------------------------------
@@ -473,7 +511,6 @@ TEST_CASE("hsd_train: a killed or stalled rank makes the other exit with an erro
     CHECK(rc == 4);
     CHECK_THAT(err, Catch::Contains("rank " + std::to_string(survivor) + " of 2"));
     CHECK_THAT(err, Catch::Contains("failed"));
-    CHECK(secs >= 0.0);
     CHECK(secs < timeout_s + 10.0);
     CHECK(fs::exists(dir / "r0" / "checkpoints" / "last.pt"));
     CHECK_FALSE(fs::exists(dir / "r1"));  // rank 1 wrote nothing
@@ -482,8 +519,8 @@ TEST_CASE("hsd_train: a killed or stalled rank makes the other exit with an erro
   // A dead rank's sockets close: the other stops at once, long before the timeout.
   CHECK(scenario("killed_rank1", "9", 1, 120.0) < 10.0);
   CHECK(scenario("killed_rank0", "9", 0, 120.0) < 10.0);  // rank 0 also served the store
-  // Alive but silent: the timeout.
-  CHECK(scenario("stalled", "STOP", 1, 3.0) >= 2.0);
+  // Alive but silent: the timeout (10 s: it also bounds the rendezvous and rank 0's picture writing).
+  CHECK(scenario("stalled", "STOP", 1, 10.0) >= 5.0);
 }
 
 TEST_CASE("hsd_train: bad distributed settings exit 2 with one line naming the variable or key", "[app][distributed]") {
@@ -515,6 +552,20 @@ TEST_CASE("hsd_train: bad distributed settings exit 2 with one line naming the v
   CHECK_THAT(o3, Catch::Contains("rank1=2"));
   CHECK_THAT(o3, Catch::Contains("train.lr_net"));
   CHECK_THAT(o3, Catch::Contains("rank0=4"));
+  // One rank resuming while the other starts afresh would run other collectives: refused by name.
+  const std::string ckdir = (base / "ck").string();
+  REQUIRE(test::run("hsd_train" + kTinyRun + " --set data.root=" + (base / "data").string() + " --set train.steps=2 --out " +
+                    ckdir).code == 0);
+  const std::string env2 = "WORLD_SIZE=2 MASTER_ADDR=127.0.0.1 MASTER_PORT=" + std::to_string(free_local_port());
+  const std::string ck_args = kTinyRun + " --set data.root=" + (base / "data").string() + " --set train.steps=4 --out " + ckdir;
+  const auto [o6, c6] = test::capture("cd " + std::string(HSD_SOURCE_DIR) + " && (env " + env2 + " RANK=0 " + bin + ck_args +
+                                      " > /dev/null 2>&1; echo \"rank0=$?\") & (cd " + std::string(HSD_SOURCE_DIR) +
+                                      " && env " + env2 + " RANK=1 " + bin + ck_args +
+                                      " --resume 2>&1 >/dev/null; echo \"rank1=$?\"); wait");
+  INFO(o6);
+  CHECK_THAT(o6, Catch::Contains("rank1=2"));
+  CHECK_THAT(o6, Catch::Contains("--resume"));
+  CHECK_THAT(o6, Catch::Contains("rank0=4"));
   // The launcher refuses what it cannot run, and passes a rank's failure on.
   const auto [o4, c4] = test::capture(launcher("--nproc 0 -- --config x 2>&1"));
   CHECK(c4 == 2);

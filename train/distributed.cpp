@@ -2,12 +2,15 @@
 
 // c10d's Gloo headers need USE_C10D_GLOO (Torch's CMake config defines it;
 // Debian's libtorch_cpu carries the implementation). Only this file sees c10d.
+#include <torch/csrc/distributed/c10d/PrefixStore.hpp>
 #include <torch/csrc/distributed/c10d/ProcessGroupGloo.hpp>
 #include <torch/csrc/distributed/c10d/TCPStore.hpp>
 
+#include <atomic>
 #include <chrono>
 #include <cstdlib>
 #include <map>
+#include <thread>
 #include <netinet/in.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -69,10 +72,12 @@ int free_local_port() {
 
 DistributedEnv DistributedEnv::from_environment() {
   DistributedEnv e;
-  const bool any = getenv_set("WORLD_SIZE") || getenv_set("RANK") || getenv_set("MASTER_ADDR") || getenv_set("MASTER_PORT");
-  if (!any) return e;
-  if (!getenv_set("WORLD_SIZE"))
-    input_error("environment variable WORLD_SIZE", "not set while RANK/MASTER_ADDR/MASTER_PORT are (torchrun's convention needs all four)");
+  // WORLD_SIZE decides: clusters often export MASTER_ADDR/PORT for everyone.
+  if (!getenv_set("WORLD_SIZE")) {
+    if (getenv_set("RANK") || getenv_set("MASTER_ADDR") || getenv_set("MASTER_PORT"))
+      log::warn("RANK/MASTER_ADDR/MASTER_PORT are set but WORLD_SIZE is not: running as a single process");
+    return e;
+  }
   e.world_size = env_int("WORLD_SIZE", 1, 65536);
   if (getenv_set("RANK")) e.rank = env_int("RANK", 0, 65535);
   if (e.world_size == 1) {
@@ -89,6 +94,7 @@ DistributedEnv DistributedEnv::from_environment() {
   if (getenv_set("LOCAL_WORLD_SIZE")) e.local_world_size = env_int("LOCAL_WORLD_SIZE", 1, e.world_size);
   const char* agent = getenv_set("TORCHELASTIC_USE_AGENT_STORE");
   e.agent_store = agent != nullptr && std::string(agent) == "True";
+  if (const char* restarts = getenv_set("TORCHELASTIC_RESTART_COUNT")) e.restart_count = restarts;
   return e;
 }
 
@@ -103,9 +109,12 @@ struct DataParallel::Impl {
 
   std::string who() const { return "rank " + std::to_string(env.rank) + " of " + std::to_string(env.world_size); }
 
+  // Before issuing a collective: never post work to a failed group.
+  void usable(const std::string& what) const {
+    if (broken) throw DistributedError(who() + ": " + what + ": the process group already failed");
+  }
   // Waits for the works in order; any failure marks the group broken.
   void wait(const std::vector<c10::intrusive_ptr<c10d::Work>>& works, const std::string& what) {
-    if (broken) throw DistributedError(who() + ": " + what + ": the process group already failed");
     const auto t0 = Clock::now();
     try {
       for (const auto& w : works) w->wait();
@@ -134,6 +143,9 @@ DataParallel::DataParallel(const DistributedEnv& env, const DistributedConfig& c
   so.timeout = timeout;
   try {
     impl_->store = c10::make_intrusive<c10d::TCPStore>(env.master_addr, so);
+    // torchrun's agent store outlives restarts: keys of this attempt only, as PyTorch does.
+    if (env.agent_store)
+      impl_->store = c10::make_intrusive<c10d::PrefixStore>("/worker/attempt_" + env.restart_count, impl_->store);
   } catch (const std::exception& e) {
     const std::string r = reason(e);
     if (env.rank == 0 && (r.find("in use") != std::string::npos || r.find("bind") != std::string::npos))
@@ -172,6 +184,7 @@ std::string DataParallel::describe() const {
 }
 
 void DataParallel::all_reduce_sum_(torch::Tensor& t, const std::string& what) {
+  impl_->usable("summing " + what);
   std::vector<at::Tensor> v{t.device().is_cpu() && t.is_contiguous() ? t : t.contiguous().cpu()};
   impl_->wait({impl_->pg->allreduce(v)}, "summing " + what);
   if (!v[0].is_same(t)) t.copy_(v[0]);
@@ -230,6 +243,7 @@ void unpack(const Bucket& bk, const std::vector<torch::Tensor>& ts, double scale
 
 void DataParallel::broadcast_(const std::vector<torch::Tensor>& tensors, const std::string& what) {
   if (tensors.empty()) return;
+  impl_->usable("broadcasting " + what);
   auto buckets = make_buckets(tensors, impl_->cfg.bucket_mib * 1048576.0);
   std::vector<c10::intrusive_ptr<c10d::Work>> works;
   for (auto& bk : buckets) {
@@ -247,6 +261,7 @@ void DataParallel::average_gradients_(const std::vector<torch::Tensor>& params, 
     grads.push_back(p.grad());
   }
   if (grads.empty()) return;
+  impl_->usable("averaging " + what);
   auto buckets = make_buckets(grads, impl_->cfg.bucket_mib * 1048576.0);
   std::vector<c10::intrusive_ptr<c10d::Work>> works;
   for (auto& bk : buckets) {
@@ -259,7 +274,10 @@ void DataParallel::average_gradients_(const std::vector<torch::Tensor>& params, 
 
 void DataParallel::set_bucket_mib(double mib) { impl_->cfg.bucket_mib = mib; }
 
-void DataParallel::barrier(const std::string& what) { impl_->wait({impl_->pg->barrier()}, "waiting for all ranks " + what); }
+void DataParallel::barrier(const std::string& what) {
+  impl_->usable("waiting for all ranks " + what);
+  impl_->wait({impl_->pg->barrier()}, "waiting for all ranks " + what);
+}
 
 std::string DataParallel::from_rank0(const std::string& key, const std::string& text) {
   try {
@@ -275,24 +293,56 @@ std::string DataParallel::from_rank0(const std::string& key, const std::string& 
   }
 }
 
-void DataParallel::announce(const std::string& key) {
-  if (rank() != 0) return;
-  try {
-    impl_->store->set("hsd/" + key, std::vector<uint8_t>{1});
-  } catch (const std::exception& e) {
-    impl_->broken = true;
-    throw DistributedError(impl_->who() + ": announcing " + key + " failed: " + reason(e));
+void DataParallel::run_on_rank0(const std::string& key, const std::function<void()>& work, const std::string& what) {
+  const std::string done = "hsd/done/" + key, alive = "hsd/alive/" + key;
+  if (rank() == 0) {
+    // A heartbeat while the work runs, so the others can tell slow from dead.
+    std::atomic<bool> stop{false};
+    std::thread beat([&] {
+      try {
+        while (!stop) {
+          impl_->store->add(alive, 1);
+          for (int i = 0; i < 10 && !stop; ++i) std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        }
+      } catch (...) {  // a store problem shows at the set below
+      }
+    });
+    try {
+      work();
+    } catch (...) {
+      stop = true;
+      beat.join();
+      throw;
+    }
+    stop = true;
+    beat.join();
+    try {
+      impl_->store->set(done, std::vector<uint8_t>{1});
+    } catch (const std::exception& e) {
+      impl_->broken = true;
+      throw DistributedError(impl_->who() + ": announcing that " + what + " is done failed: " + reason(e));
+    }
+    return;
   }
-}
-
-void DataParallel::wait_for(const std::string& key, double timeout_s, const std::string& what) {
-  if (rank() == 0) return;
+  // The others: wait while the heartbeat moves; timeout_s without a beat ends it.
   try {
-    impl_->store->wait({"hsd/" + key}, std::chrono::milliseconds(int64_t(timeout_s * 1000.0)));
+    int64_t last = -1;
+    auto last_change = Clock::now();
+    for (;;) {
+      if (impl_->store->check({done})) return;
+      const int64_t beat = impl_->store->add(alive, 0);
+      if (beat != last) last = beat, last_change = Clock::now();
+      if (std::chrono::duration<double>(Clock::now() - last_change).count() > impl_->cfg.timeout_s)
+        throw DistributedError(impl_->who() + ": waiting for rank 0 " + what + ": no sign of life from rank 0 for " +
+                               c10::str(impl_->cfg.timeout_s) + " s (distributed.timeout_s)");
+      std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    }
+  } catch (const DistributedError&) {
+    impl_->broken = true;
+    throw;
   } catch (const std::exception& e) {
     impl_->broken = true;
-    throw DistributedError(impl_->who() + ": waiting for rank 0 " + what + " failed: " + reason(e) +
-                           " (rank 0 exited, or took longer than " + c10::str(timeout_s) + " s)");
+    throw DistributedError(impl_->who() + ": waiting for rank 0 " + what + " failed: " + reason(e) + " (rank 0 exited?)");
   }
 }
 

@@ -20,6 +20,7 @@
 // and the collective. A broken group is abandoned rather than torn down
 // (destroying a Gloo group with a dead peer can block or abort).
 #pragma once
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -40,6 +41,7 @@ struct DistributedEnv {
   // torchrun's agent already serves the store at MASTER_ADDR:MASTER_PORT
   // (TORCHELASTIC_USE_AGENT_STORE=True): every rank, rank 0 too, is a client.
   bool agent_store = false;
+  std::string restart_count = "0";  // TORCHELASTIC_RESTART_COUNT: the agent store's key prefix
   bool enabled() const { return world_size > 1; }
   // None of the variables set (or WORLD_SIZE=1): a single process. InputError
   // naming the variable for a malformed, missing or inconsistent one.
@@ -78,10 +80,11 @@ class DataParallel final : public model::ReplicaGroup {
   std::string from_rank0(const std::string& key, const std::string& text);
   // Waits until every rank got here.
   void barrier(const std::string& what);
-  // Rank 0 announces `key`; the others block in wait_for until it does, up to
-  // timeout_s (long waits such as rank 0 generating the dataset).
-  void announce(const std::string& key);
-  void wait_for(const std::string& key, double timeout_s, const std::string& what);
+  // Rank 0 runs `work` (e.g. generating the dataset) while the others wait for
+  // it, however long it takes, as long as rank 0 shows a heartbeat; without one
+  // for distributed.timeout_s (rank 0 died or hangs) they throw DistributedError.
+  // An exception in rank 0's work propagates there (the others then time out).
+  void run_on_rank0(const std::string& key, const std::function<void()>& work, const std::string& what);
 
   // Where the time went: seconds spent waiting in collectives, and their count.
   double seconds_communicating() const;

@@ -171,11 +171,13 @@ void Trainer::check_replicas_agree(int64_t step) {
 }
 
 void Trainer::attach_data() {
-  // Rank 0 makes the dataset if needed; the others wait for it (up to a day:
-  // if rank 0 dies its store goes with it and the wait ends at once).
-  if (group_ && rank_ != 0) group_->wait_for("dataset", 86400.0, "to provide the dataset " + cfg_.data.root);
-  const std::string root = data::ensure_dataset(cfg_);
-  if (group_ && rank_ == 0) group_->announce("dataset");
+  // Rank 0 makes the dataset if needed while the others wait (as long as it
+  // shows a heartbeat). The others never generate one: their data.root must
+  // hold rank 0's dataset (a shared folder, or a copy on each host).
+  if (group_) group_->run_on_rank0("dataset", [&] { data::ensure_dataset(cfg_); }, "to provide the dataset " + cfg_.data.root);
+  Config local = cfg_;
+  if (group_ && rank_ != 0) local.data.generate_if_missing = false;
+  const std::string root = data::ensure_dataset(local);
   const auto bands = cfg_.optics.wavelengths_m();
   const double bw = cfg_.optics.band_width_m();
   train_scenes_ = data::load_split(root, "train", bands, bw, cfg_.data.loader_threads);
@@ -261,6 +263,8 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
 ValStats Trainer::validate() {
   if (!val_.radiance.defined()) throw InputError("trainer: attach_data() first");
   torch::NoGradGuard no_grad;
+  // Per-rank batch norm: every rank validates with rank 0's running statistics.
+  if (group_ && !cfg_.distributed.sync_batch_norm) group_->broadcast_(net_->buffers(), "rank 0's batch-norm statistics");
   net_->eval();
   const torch::Tensor h = doe_.height();
   // This rank's share [lo, hi) of the validation patches (all of them alone).

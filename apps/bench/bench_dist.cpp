@@ -112,7 +112,9 @@ Json spawn_children(const std::string& config_file, const AppArgs& args, const s
     std::vector<std::string> e;
     for (char** v = environ; *v; ++v) {
       const std::string s = *v;
-      if (s.rfind("WORLD_SIZE=", 0) && s.rfind("RANK=", 0) && s.rfind("MASTER_", 0) && s.rfind("LOCAL_WORLD_SIZE=", 0)) e.push_back(s);
+      if (s.rfind("WORLD_SIZE=", 0) && s.rfind("RANK=", 0) && s.rfind("MASTER_", 0) && s.rfind("LOCAL_WORLD_SIZE=", 0) &&
+          s.rfind("TORCHELASTIC_", 0))  // the ranks are ours, not an outer launcher's
+        e.push_back(s);
     }
     if (mode != "solo")
       for (const std::string& s : {"WORLD_SIZE=" + std::to_string(ranks), "RANK=" + std::to_string(r), std::string("MASTER_ADDR=127.0.0.1"),
@@ -177,7 +179,9 @@ int bench_dist(Config cfg, const AppArgs& args, BenchOutput& out) {
   const auto tmp = std::filesystem::temp_directory_path() / ("hsd_bench_dist_" + std::to_string(::getpid()));
   std::filesystem::create_directories(tmp);
   const std::string config_file = (tmp / "config.json").string();
-  write_text_file(config_file, cfg.resolved.dump(2));
+  Json resolved = cfg.resolved;
+  resolved["distributed"]["timeout_s"] = std::min(cfg.distributed.timeout_s, 60.0);  // a failed rank ends its peer soon
+  write_text_file(config_file, resolved.dump(2));
   Json sync, nosync, solo;
   log::info(std::to_string(ranks) + " ranks x " + std::to_string(rank_threads) + " threads, batch norm over the global batch ...");
   sync = spawn_children(config_file, args, "sync", ranks, rank_threads, (tmp / "sync.json").string());
