@@ -301,6 +301,7 @@ Config parse_config(const Json& resolved) {
     D.bucket_mib = d->get_number("bucket_mib", D.bucket_mib);
     if (!(D.bucket_mib > 0.0 && D.bucket_mib <= 4096.0)) d->fail("bucket_mib", "must be in (0, 4096] MiB");
     D.sync_batch_norm = d->get_bool("sync_batch_norm", D.sync_batch_norm);
+    D.split_psf = d->get_bool("split_psf", D.split_psf);
   }
   if (auto d = r.optional_child("data")) c.data = parse_data(*d);
   r.check_all_used();

@@ -123,6 +123,7 @@ struct DistributedConfig {
   double timeout_s = 300.0;  // rendezvous and every collective: a dead or stalled rank ends the others after this
   double bucket_mib = 25.0;  // gradients are summed in flat buckets of about this size (fewer, larger collectives)
   bool sync_batch_norm = true;  // batch statistics of the global batch (matches one process); false: per rank, as DDP
+  bool split_psf = true;        // training PSFs computed once, shared out by bands (train/shared_psf.h); false: every rank all
 };
 
 // hsd_scenes: synthetic tabletop HS-D scenes (data/scene_generator.h).

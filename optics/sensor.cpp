@@ -23,7 +23,7 @@ SensorModel make_sensor_model(const SensorConfig& cfg, const PsfSpec& spec, doub
 
 SensorImage simulate_sensor(const PsfSimulator& psf_sim, const SensorModel& model, const torch::Tensor& height_m,
                             const torch::Tensor& radiance, const torch::Tensor& depth_m,
-                            const NoiseRng& noise_rng, const LeaveOut& leave) {
+                            const NoiseRng& noise_rng, const LeaveOut& leave, const PsfProvider& psf_provider) {
   const auto& spec = psf_sim.spec();
   const int64_t L = int64_t(spec.wavelengths_m.size());
   if (radiance.dim() != 4 || radiance.size(1) != L)
@@ -50,8 +50,10 @@ SensorImage simulate_sensor(const PsfSimulator& psf_sim, const SensorModel& mode
     }
   }
   if (y1 == y0 || x1 == x0) {
+    // A provider's collectives (forward and backward) run on every rank: its output joins the graph.
+    const torch::Tensor link = psf_provider ? psf_provider(height_m, {}, {}).sum() : torch::zeros({}, height_m.options());
     SensorImage out;
-    out.clean = torch::zeros({B, 3, H, W}, radiance.options()) * height_m.sum().to(radiance.scalar_type());  // keeps the graph
+    out.clean = torch::zeros({B, 3, H, W}, radiance.options()) * (height_m.sum() + link).to(radiance.scalar_type());  // keeps the graph
     out.image = apply_sensor_noise(out.clean, model.noise, noise_rng);
     out.psf = torch::zeros({int64_t(spec.wavelengths_m.size()), 0, spec.psf_size, spec.psf_size}, radiance.options());
     return out;
@@ -76,10 +78,15 @@ SensorImage simulate_sensor(const PsfSimulator& psf_sim, const SensorModel& mode
   const torch::Tensor masks = layer_masks(dep.to(dt), layer_depths, model.mask_sigma_px);
   torch::Tensor clean;
   if (out.bands.empty()) {
+    // A provider's collectives (forward and backward) run on every rank: its output joins the graph.
+    const torch::Tensor link =
+        psf_provider ? psf_provider(height_m, out.layers, {}).sum() : torch::zeros({}, height_m.options());
     out.psf = torch::zeros({L, int64_t(out.layers.size()), spec.psf_size, spec.psf_size}, radiance.options());
-    clean = torch::zeros({B, 3, y1 - y0, x1 - x0}, radiance.options()) * height_m.sum().to(dt);  // keeps the graph
+    clean = torch::zeros({B, 3, y1 - y0, x1 - x0}, radiance.options()) * (height_m.sum() + link).to(dt);  // keeps the graph
   } else {
-    torch::Tensor psf = psf_sim.compute(height_m, out.layers, {}, out.bands).psf.to(dt);  // [L', Z', P, P]
+    torch::Tensor psf = (psf_provider ? psf_provider(height_m, out.layers, out.bands)
+                                      : psf_sim.compute(height_m, out.layers, {}, out.bands).psf)
+                            .to(dt);  // [L', Z', P, P]
     const bool grad = height_m.requires_grad() && torch::GradMode::is_enabled();
     if (leave.psf_crop_tol > 0.0 && !grad) {
       const int64_t w = psf_support_window(psf, leave.psf_crop_tol), o = (spec.psf_size - w) / 2;

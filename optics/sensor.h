@@ -4,6 +4,7 @@
 // from the config's sensor section. Leaves out what a scene does not need:
 // PSFs and convolutions of empty layers, bands the camera does not see.
 #pragma once
+#include <functional>
 #include <vector>
 
 #include <torch/types.h>
@@ -33,11 +34,21 @@ struct SensorImage {
   std::vector<int64_t> bands;   // bands computed (the others were left out)
 };
 
+// Where the PSFs come from: PSFs [bands, layers, P, P] of the height map
+// height_m [N, N] for those band and layer indices (either list may be
+// empty). Default: PsfSimulator::compute. Data-parallel training passes one
+// that shares the work among ranks (train/shared_psf.h); such a provider is
+// then called exactly once per simulate_sensor call, even when nothing needs
+// a PSF (empty lists), so every rank takes part in its collectives.
+using PsfProvider = std::function<torch::Tensor(const torch::Tensor& height_m, const std::vector<int64_t>& layers,
+                                                const std::vector<int64_t>& bands)>;
+
 // radiance [B, L, H, W] (scene radiance per band), depth_m [B, 1, H, W] metres
 // (finite, > 0), height_m [N, N] (may require grad). Differentiable in height_m
 // and radiance.
 SensorImage simulate_sensor(const PsfSimulator& psf_sim, const SensorModel& model, const torch::Tensor& height_m,
                             const torch::Tensor& radiance, const torch::Tensor& depth_m,
-                            const NoiseRng& noise_rng = {}, const LeaveOut& leave = LeaveOut());
+                            const NoiseRng& noise_rng = {}, const LeaveOut& leave = LeaveOut(),
+                            const PsfProvider& psf_provider = nullptr);
 
 }  // namespace hsd::optics

@@ -9,6 +9,7 @@
 // users launch it: two ranks against one process, resume, a killed and a
 // stalled rank, bad environments.
 #include <catch2/catch.hpp>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cstdlib>
@@ -26,6 +27,7 @@
 #include "model/sync_batch_norm.h"
 #include "optics/sensor_noise.h"
 #include "train/distributed.h"
+#include "train/shared_psf.h"
 #include "train/trainer.h"
 
 using namespace hsd;
@@ -289,6 +291,56 @@ TEST_CASE("distributed: batch norm over two ranks equals batch norm of the whole
   for (int r = 0; r < 2; ++r) {
     CHECK(diff(rm[size_t(r)], ref->running_mean) < 1e-14);
     CHECK(diff(rv[size_t(r)], ref->running_var) < 1e-14);
+  }
+}
+
+TEST_CASE("distributed: PSFs shared out by bands equal one process's, values and height gradient (float64)",
+          "[distributed][optics]") {
+  // 4 bands, 3 layers, a 32-sample DOE; float64 throughout.
+  const optics::PsfSpec spec = test::make_spec({450e-9, 520e-9, 590e-9, 650e-9}, {0.5, 1.0, 2.0}, 32, 8e-6, 2.4e-4, 9,
+                                               6e-6, 0.02, 2, torch::kFloat64);
+  const optics::PsfSimulator sim(spec);
+  torch::manual_seed(4);
+  const torch::Tensor h0 = torch::rand({32, 32}, torch::kFloat64) * 1e-6;
+  // What each rank's slice needs (bands, layers), in three cases: overlapping, disjoint, one rank needing nothing.
+  using Need = std::pair<std::vector<int64_t>, std::vector<int64_t>>;
+  const std::vector<std::array<Need, 2>> cases{{Need{{0, 2}, {0}}, Need{{1, 2, 3}, {0, 2}}},
+                                               {Need{{3}, {1}}, Need{{0}, {2}}},
+                                               {Need{{0, 1, 2, 3}, {0, 1, 2}}, Need{{}, {}}}};
+  for (size_t k = 0; k < cases.size(); ++k) {
+    INFO("case " << k);
+    std::vector<torch::Tensor> psf(2), grad(2), weights(2);
+    for (int r = 0; r < 2; ++r)
+      weights[size_t(r)] = torch::rand({int64_t(cases[k][size_t(r)].first.size()), int64_t(cases[k][size_t(r)].second.size()), 9, 9},
+                                       torch::kFloat64);
+    DistributedConfig cfg;
+    cfg.timeout_s = 30;
+    run_ranks(2, cfg, [&](int r, std::shared_ptr<train::DataParallel> g) {
+      const auto provider = train::make_shared_psf_provider(sim, g);
+      const torch::Tensor h = h0.clone().requires_grad_();
+      const auto& [bands, layers] = cases[k][size_t(r)];
+      const torch::Tensor p = provider(h, layers, bands);
+      (p * weights[size_t(r)]).sum().backward();  // each rank's own loss
+      psf[size_t(r)] = p.detach();
+      grad[size_t(r)] = h.grad();
+    });
+    // One process: each rank's PSFs computed directly, and the gradient of the sum of both losses.
+    const torch::Tensor h = h0.clone().requires_grad_();
+    torch::Tensor total = torch::zeros({}, torch::kFloat64);
+    for (int r = 0; r < 2; ++r) {
+      const auto& [bands, layers] = cases[k][size_t(r)];
+      if (bands.empty() || layers.empty()) {
+        CHECK(psf[size_t(r)].numel() == 0);
+        continue;
+      }
+      const torch::Tensor ref = sim.compute(h, layers, {}, bands).psf;
+      CHECK((psf[size_t(r)] - ref.detach()).abs().max().item<double>() < 1e-14);
+      total = total + (ref * weights[size_t(r)]).sum();
+    }
+    total.backward();
+    // Each rank holds its bands' part; their sum is the whole gradient (training then divides by W).
+    const torch::Tensor sum = grad[0] + grad[1];
+    CHECK((sum - h.grad()).abs().max().item<double>() <= 1e-10 * h.grad().abs().max().item<double>());
   }
 }
 

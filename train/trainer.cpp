@@ -22,6 +22,7 @@
 #include "train/metrics_csv.h"
 #include "train/plot.h"
 #include "train/schedule.h"
+#include "train/shared_psf.h"
 
 namespace hsd::train {
 
@@ -112,6 +113,7 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
       input_error("config key train.batch_size", std::to_string(cfg.train.batch_size) + " does not split evenly over " +
                                                      std::to_string(world_) + " ranks (WORLD_SIZE)");
     if (cfg.distributed.sync_batch_norm) net_->set_replica_group(group_);
+    if (cfg.distributed.split_psf) shared_psf_ = make_shared_psf_provider(*psf_, group_);
     group_->broadcast_(replicated_state(), "the initial network and DOE");
   }
 }
@@ -229,7 +231,8 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   net_->train();
   const auto gens = image_generators(mix(cfg_.seed ^ 0xA5A5A5A5ull, uint64_t(step)), batch.first_index, batch.radiance.size(0));
   const torch::Tensor h = doe_.height();
-  const optics::SensorImage img = optics::simulate_sensor(*psf_, sensor_, h, batch.radiance, batch.depth_m, gens);
+  const optics::SensorImage img =
+      optics::simulate_sensor(*psf_, sensor_, h, batch.radiance, batch.depth_m, gens, optics::LeaveOut(), shared_psf_);
   const model::NetOutput out = net_->forward(img.image);
   const LossTerms L = reconstruction_loss(out.hs, batch.radiance, out.inv_depth, 1.0 / batch.depth_m, weights_);
   // The global batch's loss terms (the mean of the ranks' equal slices): what

@@ -96,6 +96,7 @@ class Trainer {
   void check_replicas_agree(int64_t step);
   Config cfg_;
   std::shared_ptr<DataParallel> group_;
+  optics::PsfProvider shared_psf_;  // training PSFs shared out over the ranks (distributed.split_psf)
   int64_t rank_ = 0, world_ = 1;
   torch::Device device_;
   optics::Material material_;

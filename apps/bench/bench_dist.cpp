@@ -2,8 +2,9 @@
 // in one run, on the same global batch (--batch patches of --patch px, the
 // config's optics and network):
 //   - one process with all the threads;
-//   - --ranks local ranks (Gloo over loopback, cores / ranks threads each),
-//     batch norm over the global batch (the default) and per rank;
+//   - --ranks local ranks (Gloo over loopback, cores / ranks threads each):
+//     the defaults (batch norm over the global batch, PSFs shared out by
+//     bands), every rank computing all PSFs, and batch norm per rank;
 //   - the same ranks' work as independent processes at once, without any
 //     communication: the best the machine allows, so what remains is the
 //     cost of the collectives;
@@ -58,7 +59,8 @@ int run_child(Config cfg, const AppArgs& args, int64_t batch, int64_t patch, int
   std::shared_ptr<train::DataParallel> group;
   int64_t rank = args.integer("--child-rank", 0);
   if (mode != "solo") {
-    cfg.distributed.sync_batch_norm = mode == "sync";
+    cfg.distributed.sync_batch_norm = mode != "nosync";
+    cfg.distributed.split_psf = mode != "nosplit";
     const train::DistributedEnv env = train::DistributedEnv::from_environment();
     group = std::make_shared<train::DataParallel>(env, cfg.distributed);
     rank = group->rank();
@@ -182,16 +184,19 @@ int bench_dist(Config cfg, const AppArgs& args, BenchOutput& out) {
   Json resolved = cfg.resolved;
   resolved["distributed"]["timeout_s"] = std::min(cfg.distributed.timeout_s, 60.0);  // a failed rank ends its peer soon
   write_text_file(config_file, resolved.dump(2));
-  Json sync, nosync, solo;
-  log::info(std::to_string(ranks) + " ranks x " + std::to_string(rank_threads) + " threads, batch norm over the global batch ...");
+  Json sync, nosplit, nosync, solo;
+  log::info(std::to_string(ranks) + " ranks x " + std::to_string(rank_threads) + " threads, the defaults ...");
   sync = spawn_children(config_file, args, "sync", ranks, rank_threads, (tmp / "sync.json").string());
+  log::info(std::to_string(ranks) + " ranks, every rank computing all PSFs ...");
+  nosplit = spawn_children(config_file, args, "nosplit", ranks, rank_threads, (tmp / "nosplit.json").string());
   log::info(std::to_string(ranks) + " ranks, batch norm per rank ...");
   nosync = spawn_children(config_file, args, "nosync", ranks, rank_threads, (tmp / "nosync.json").string());
   log::info(std::to_string(ranks) + " independent processes of one rank's work (no communication) ...");
   solo = spawn_children(config_file, args, "solo", ranks, rank_threads, (tmp / "solo.json").string());
   std::filesystem::remove_all(tmp);
 
-  const double sync_s = sync["seconds_per_step"], nosync_s = nosync["seconds_per_step"], solo_s = solo["seconds_per_step"];
+  const double sync_s = sync["seconds_per_step"], nosplit_s = nosplit["seconds_per_step"], nosync_s = nosync["seconds_per_step"],
+               solo_s = solo["seconds_per_step"];
   out.json = Json{{"bench", "dist"},
                   {"threads", all_threads},
                   {"cores", cores},
@@ -205,9 +210,11 @@ int bench_dist(Config cfg, const AppArgs& args, BenchOutput& out) {
                   {"levels", cfg.model.levels},
                   {"seconds_per_step_one_process", one_s},
                   {"seconds_per_step_ranks_sync_bn", sync_s},
+                  {"seconds_per_step_ranks_psf_per_rank", nosplit_s},
                   {"seconds_per_step_ranks_local_bn", nosync_s},
                   {"seconds_per_step_independent", solo_s},
                   {"fraction_in_collectives_sync_bn", sync["fraction_in_collectives"]},
+                  {"fraction_in_collectives_psf_per_rank", nosplit["fraction_in_collectives"]},
                   {"fraction_in_collectives_local_bn", nosync["fraction_in_collectives"]},
                   {"gradient_mib", sync["gradient_mib"]},
                   {"gradient_tensors", sync["tensors"]},
@@ -215,19 +222,22 @@ int bench_dist(Config cfg, const AppArgs& args, BenchOutput& out) {
                   {"gradient_average_bucketed_collectives", sync["bucketed_collectives"]},
                   {"gradient_average_per_tensor_seconds", sync["per_tensor_seconds"]},
                   {"gradient_average_per_tensor_collectives", sync["per_tensor_collectives"]}};
-  char buf[1400];
+  char buf[1800];
   std::snprintf(
       buf, sizeof buf,
       "data-parallel training step: global batch %lld of %lld px, %zu bands, %zu depths, U-Net width %lld x %lld levels; "
       "%d cores\n"
       "one process, %d threads                          %7.3f s/step\n"
-      "%lld ranks x %d threads, batch norm global        %7.3f s/step  %.2fx  %4.1f%% in collectives\n"
+      "%lld ranks x %d threads (global batch norm,\n"
+      "  PSFs shared out by bands: the defaults)        %7.3f s/step  %.2fx  %4.1f%% in collectives\n"
+      "%lld ranks, every rank computing all PSFs         %7.3f s/step  %.2fx  %4.1f%% in collectives\n"
       "%lld ranks x %d threads, batch norm per rank      %7.3f s/step  %.2fx  %4.1f%% in collectives\n"
       "%lld independent copies of a rank's work (floor)  %7.3f s/step  %.2fx  (no communication)\n"
       "gradient average, %.1f MiB in %lld tensors: %lld bucket(s) %.4f s, one collective per tensor %.4f s (%.1fx)\n",
       (long long)batch, (long long)patch, cfg.optics.wavelengths_nm.size(), cfg.optics.depths_m.size(),
       (long long)cfg.model.base_width, (long long)cfg.model.levels, cores, all_threads, one_s, (long long)ranks, rank_threads,
-      sync_s, one_s / sync_s, 100.0 * sync["fraction_in_collectives"].get<double>(), (long long)ranks, rank_threads, nosync_s,
+      sync_s, one_s / sync_s, 100.0 * sync["fraction_in_collectives"].get<double>(), (long long)ranks, nosplit_s,
+      one_s / nosplit_s, 100.0 * nosplit["fraction_in_collectives"].get<double>(), (long long)ranks, rank_threads, nosync_s,
       one_s / nosync_s, 100.0 * nosync["fraction_in_collectives"].get<double>(), (long long)ranks, solo_s, one_s / solo_s,
       sync["gradient_mib"].get<double>(), (long long)sync["tensors"].get<int64_t>(),
       (long long)sync["bucketed_collectives"].get<int64_t>(), sync["bucketed_seconds"].get<double>(),
