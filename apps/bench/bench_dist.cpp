@@ -5,9 +5,9 @@
 //   - --ranks local ranks (Gloo over loopback, cores / ranks threads each):
 //     the defaults (batch norm over the global batch, PSFs shared out by
 //     bands), every rank computing all PSFs, and batch norm per rank;
-//   - the same ranks' work as independent processes at once, without any
-//     communication: the best the machine allows, so what remains is the
-//     cost of the collectives;
+//   - the same ranks' shares as independent processes at once, without any
+//     communication (each computing all PSFs): what two processes cost on
+//     this machine before any collective;
 //   - the gradient average alone: flat buckets against one collective per tensor.
 // The ranks are this binary started again with hidden flags (--child-mode,
 // --child-result); their figures come back through a JSON file.
@@ -191,7 +191,7 @@ int bench_dist(Config cfg, const AppArgs& args, BenchOutput& out) {
   nosplit = spawn_children(config_file, args, "nosplit", ranks, rank_threads, (tmp / "nosplit.json").string());
   log::info(std::to_string(ranks) + " ranks, batch norm per rank ...");
   nosync = spawn_children(config_file, args, "nosync", ranks, rank_threads, (tmp / "nosync.json").string());
-  log::info(std::to_string(ranks) + " independent processes of one rank's work (no communication) ...");
+  log::info(std::to_string(ranks) + " independent processes of one rank's share each (no communication) ...");
   solo = spawn_children(config_file, args, "solo", ranks, rank_threads, (tmp / "solo.json").string());
   std::filesystem::remove_all(tmp);
 
@@ -232,7 +232,7 @@ int bench_dist(Config cfg, const AppArgs& args, BenchOutput& out) {
       "  PSFs shared out by bands: the defaults)        %7.3f s/step  %.2fx  %4.1f%% in collectives\n"
       "%lld ranks, every rank computing all PSFs         %7.3f s/step  %.2fx  %4.1f%% in collectives\n"
       "%lld ranks x %d threads, batch norm per rank      %7.3f s/step  %.2fx  %4.1f%% in collectives\n"
-      "%lld independent copies of a rank's work (floor)  %7.3f s/step  %.2fx  (no communication)\n"
+      "%lld independent processes, a rank's share each   %7.3f s/step  %.2fx  (all PSFs each, no communication)\n"
       "gradient average, %.1f MiB in %lld tensors: %lld bucket(s) %.4f s, one collective per tensor %.4f s (%.1fx)\n",
       (long long)batch, (long long)patch, cfg.optics.wavelengths_nm.size(), cfg.optics.depths_m.size(),
       (long long)cfg.model.base_width, (long long)cfg.model.levels, cores, all_threads, one_s, (long long)ranks, rank_threads,
