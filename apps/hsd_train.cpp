@@ -67,9 +67,7 @@ void check_same_config(const Config& cfg, bool resume, train::DataParallel& grou
 int run(const AppArgs& args) {
   const Config cfg = load_config(args.config_path, args.overrides);
   const train::DistributedEnv env = train::DistributedEnv::from_environment();
-  if (env.enabled() && cfg.train.batch_size % env.world_size != 0)
-    input_error("config key train.batch_size", std::to_string(cfg.train.batch_size) + " does not split evenly over " +
-                                                   std::to_string(env.world_size) + " ranks (WORLD_SIZE)");
+  if (env.enabled()) train::check_global_batch(cfg, env.world_size);  // before joining: every rank says so itself
   const bool resume = args.has("--resume");
   if (resume && !std::filesystem::exists(args.out_dir + "/checkpoints/last.pt"))
     input_error(args.out_dir + "/checkpoints/last.pt", "no checkpoint to resume from (--resume)");

@@ -49,9 +49,13 @@ SensorImage simulate_sensor(const PsfSimulator& psf_sim, const SensorModel& mode
       x0 = std::max<int64_t>(0, cols.min().item<int64_t>() - margin), x1 = std::min(W, cols.max().item<int64_t>() + 1 + margin);
     }
   }
+  // When no PSF is needed, a provider is still called (its collectives, forward
+  // and backward, run on every rank) and its output joins the graph as a zero.
+  auto provider_link = [&](const std::vector<int64_t>& layers) {
+    return psf_provider ? psf_provider(height_m, layers, {}).sum() : torch::zeros({}, height_m.options());
+  };
   if (y1 == y0 || x1 == x0) {
-    // A provider's collectives (forward and backward) run on every rank: its output joins the graph.
-    const torch::Tensor link = psf_provider ? psf_provider(height_m, {}, {}).sum() : torch::zeros({}, height_m.options());
+    const torch::Tensor link = provider_link({});
     SensorImage out;
     out.clean = torch::zeros({B, 3, H, W}, radiance.options()) * (height_m.sum() + link).to(radiance.scalar_type());  // keeps the graph
     out.image = apply_sensor_noise(out.clean, model.noise, noise_rng);
@@ -78,9 +82,7 @@ SensorImage simulate_sensor(const PsfSimulator& psf_sim, const SensorModel& mode
   const torch::Tensor masks = layer_masks(dep.to(dt), layer_depths, model.mask_sigma_px);
   torch::Tensor clean;
   if (out.bands.empty()) {
-    // A provider's collectives (forward and backward) run on every rank: its output joins the graph.
-    const torch::Tensor link =
-        psf_provider ? psf_provider(height_m, out.layers, {}).sum() : torch::zeros({}, height_m.options());
+    const torch::Tensor link = provider_link(out.layers);
     out.psf = torch::zeros({L, int64_t(out.layers.size()), spec.psf_size, spec.psf_size}, radiance.options());
     clean = torch::zeros({B, 3, y1 - y0, x1 - x0}, radiance.options()) * (height_m.sum() + link).to(dt);  // keeps the graph
   } else {

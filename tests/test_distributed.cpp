@@ -27,6 +27,7 @@
 #include "model/sync_batch_norm.h"
 #include "optics/sensor_noise.h"
 #include "train/distributed.h"
+#include "train/metrics_csv.h"
 #include "train/shared_psf.h"
 #include "train/trainer.h"
 
@@ -89,6 +90,26 @@ std::string error_of(const std::function<void()>& f) {
   return "";
 }
 
+// Two ranks: `idle` joins and then takes part in nothing while the other runs
+// `f`; returns f's error message and how long f took.
+std::pair<std::string, double> error_while_peer_idles(const DistributedConfig& cfg, int idle,
+                                                      const std::function<void(train::DataParallel&)>& f) {
+  std::string message;
+  double seconds = 0;
+  std::atomic<bool> done{false};
+  run_ranks(2, cfg, [&](int r, std::shared_ptr<train::DataParallel> g) {
+    if (r == idle) {
+      while (!done) std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      return;
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    message = error_of([&] { f(*g); });
+    seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    done = true;
+  });
+  return {message, seconds};
+}
+
 }  // namespace
 
 TEST_CASE("distributed: torchrun's environment, with one clear error per bad variable", "[distributed]") {
@@ -149,19 +170,8 @@ TEST_CASE("distributed: the others wait for rank 0's long work while it beats, a
   });
   CHECK(waited[1] >= 5.9);
   // Rank 0 never starts the work (as if hung before it): rank 1 gives up after the timeout.
-  std::string message;
-  double seconds = 0;
-  std::atomic<bool> done{false};
-  run_ranks(2, cfg, [&](int r, std::shared_ptr<train::DataParallel> g) {
-    if (r == 0) {
-      while (!done) std::this_thread::sleep_for(std::chrono::milliseconds(10));
-      return;
-    }
-    const auto t0 = std::chrono::steady_clock::now();
-    message = error_of([&] { g->run_on_rank0("never", [] {}, "to provide the dataset"); });
-    seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    done = true;
-  });
+  const auto [message, seconds] = error_while_peer_idles(
+      cfg, 0, [](train::DataParallel& g) { g.run_on_rank0("never", [] {}, "to provide the dataset"); });
   INFO(message);
   CHECK_THAT(message, Catch::Contains("rank 1 of 2"));
   CHECK_THAT(message, Catch::Contains("no sign of life from rank 0"));
@@ -426,19 +436,8 @@ TEST_CASE("distributed: two trainer ranks with batch 2 match one trainer with ba
 TEST_CASE("distributed: a rank that stops answering ends the other's collective within the timeout", "[distributed]") {
   DistributedConfig cfg;
   cfg.timeout_s = 3.0;  // also bounds the rendezvous: not shorter on a loaded machine
-  std::string message;
-  double seconds = 0;
-  std::atomic<bool> done{false};
-  run_ranks(2, cfg, [&](int r, std::shared_ptr<train::DataParallel> g) {
-    if (r == 1) {  // joins, then never takes part
-      while (!done) std::this_thread::sleep_for(std::chrono::milliseconds(10));
-      return;
-    }
-    const auto t0 = std::chrono::steady_clock::now();
-    message = error_of([&] { g->sum({1.0}, "the loss of step 7"); });
-    seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-    done = true;
-  });
+  // Rank 1 joins, then never takes part.
+  const auto [message, seconds] = error_while_peer_idles(cfg, 1, [](train::DataParallel& g) { g.sum({1.0}, "the loss of step 7"); });
   INFO(message);
   CHECK_THAT(message, Catch::Contains("rank 0 of 2"));
   CHECK_THAT(message, Catch::Contains("the loss of step 7"));
@@ -460,15 +459,9 @@ const std::string kTinyRun =
 // step -> (train_loss, val_loss) of a metrics.csv (NaN where empty).
 std::map<int, std::pair<double, double>> losses(const fs::path& csv) {
   std::map<int, std::pair<double, double>> out;
-  std::ifstream f(csv);
-  std::string line;
-  std::getline(f, line);
-  while (std::getline(f, line)) {
-    std::vector<std::string> c;
-    std::stringstream ss(line);
-    for (std::string cell; std::getline(ss, cell, ',');) c.push_back(cell);
+  auto num = [](const std::string& s) { return s.empty() ? std::nan("") : std::stod(s); };
+  for (auto c : train::read_csv_rows(csv.string())) {
     c.resize(4);
-    auto num = [](const std::string& s) { return s.empty() ? std::nan("") : std::stod(s); };
     out[std::stoi(c[0])] = {num(c[2]), num(c[3])};
   }
   return out;

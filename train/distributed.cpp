@@ -196,6 +196,12 @@ std::vector<double> DataParallel::sum(const std::vector<double>& values, const s
   return std::vector<double>(t.data_ptr<double>(), t.data_ptr<double>() + t.numel());
 }
 
+std::vector<double> DataParallel::gather(double value, const std::string& what) {
+  std::vector<double> slots(size_t(world_size()), 0.0);
+  slots[size_t(rank())] = value;  // each rank its own slot: the sum gathers them
+  return sum(slots, what);
+}
+
 namespace {
 
 // Flat CPU buckets of about `bytes`, one dtype each, in the order given.
@@ -241,17 +247,22 @@ void unpack(const Bucket& bk, const std::vector<torch::Tensor>& ts, double scale
 
 }  // namespace
 
-void DataParallel::broadcast_(const std::vector<torch::Tensor>& tensors, const std::string& what) {
+void DataParallel::bucketed_(const std::vector<torch::Tensor>& tensors, bool broadcast, double scale,
+                             const std::string& what) {
   if (tensors.empty()) return;
-  impl_->usable("broadcasting " + what);
+  impl_->usable(what);
   auto buckets = make_buckets(tensors, impl_->cfg.bucket_mib * 1048576.0);
-  std::vector<c10::intrusive_ptr<c10d::Work>> works;
+  std::vector<c10::intrusive_ptr<c10d::Work>> works;  // issued together, waited for in order
   for (auto& bk : buckets) {
     std::vector<at::Tensor> v{bk.flat};
-    works.push_back(impl_->pg->broadcast(v));
+    works.push_back(broadcast ? impl_->pg->broadcast(v) : impl_->pg->allreduce(v));
   }
-  impl_->wait(works, "broadcasting " + what + " from rank 0");
-  for (const auto& bk : buckets) unpack(bk, tensors, 1.0);
+  impl_->wait(works, what + " (" + std::to_string(buckets.size()) + " buckets)");
+  for (const auto& bk : buckets) unpack(bk, tensors, scale);
+}
+
+void DataParallel::broadcast_(const std::vector<torch::Tensor>& tensors, const std::string& what) {
+  bucketed_(tensors, true, 1.0, "broadcasting " + what + " from rank 0");
 }
 
 void DataParallel::average_gradients_(const std::vector<torch::Tensor>& params, const std::string& what) {
@@ -260,16 +271,7 @@ void DataParallel::average_gradients_(const std::vector<torch::Tensor>& params, 
     if (!p.grad().defined()) p.mutable_grad() = torch::zeros_like(p);
     grads.push_back(p.grad());
   }
-  if (grads.empty()) return;
-  impl_->usable("averaging " + what);
-  auto buckets = make_buckets(grads, impl_->cfg.bucket_mib * 1048576.0);
-  std::vector<c10::intrusive_ptr<c10d::Work>> works;
-  for (auto& bk : buckets) {
-    std::vector<at::Tensor> v{bk.flat};
-    works.push_back(impl_->pg->allreduce(v));
-  }
-  impl_->wait(works, "averaging " + what + " (" + std::to_string(buckets.size()) + " buckets)");
-  for (const auto& bk : buckets) unpack(bk, grads, 1.0 / double(world_size()));
+  bucketed_(grads, false, 1.0 / double(world_size()), "averaging " + what);
 }
 
 void DataParallel::set_bucket_mib(double mib) { impl_->cfg.bucket_mib = mib; }

@@ -68,6 +68,8 @@ class DataParallel final : public model::ReplicaGroup {
   void all_reduce_sum_(torch::Tensor& t, const std::string& what) override;
   // A few numbers summed over ranks (loss terms, metric sums), in float64.
   std::vector<double> sum(const std::vector<double>& values, const std::string& what);
+  // Every rank's `value`, indexed by rank.
+  std::vector<double> gather(double value, const std::string& what);
   // Every tensor gets rank 0's values, in place (flat buckets per dtype).
   void broadcast_(const std::vector<torch::Tensor>& tensors, const std::string& what);
   // The gradients of `params` summed over ranks and divided by the world size,
@@ -92,6 +94,9 @@ class DataParallel final : public model::ReplicaGroup {
   std::string describe() const;  // "rank 1 of 2 (127.0.0.1:29500, Gloo)"
 
  private:
+  // Flat per-dtype buckets of `tensors`, one collective each (rank 0's values
+  // or the sum over ranks), results scaled by `scale` and copied back.
+  void bucketed_(const std::vector<torch::Tensor>& tensors, bool broadcast, double scale, const std::string& what);
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };

@@ -109,13 +109,17 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
   opt_ = std::make_unique<torch::optim::Adam>(std::move(groups), torch::optim::AdamOptions(cfg.train.lr_net));
   if (group_) {
     rank_ = group_->rank(), world_ = group_->world_size();
-    if (cfg.train.batch_size % world_ != 0)
-      input_error("config key train.batch_size", std::to_string(cfg.train.batch_size) + " does not split evenly over " +
-                                                     std::to_string(world_) + " ranks (WORLD_SIZE)");
+    check_global_batch(cfg, world_);
     if (cfg.distributed.sync_batch_norm) net_->set_replica_group(group_);
     if (cfg.distributed.split_psf) shared_psf_ = make_shared_psf_provider(*psf_, group_);
     group_->broadcast_(replicated_state(), "the initial network and DOE");
   }
+}
+
+void check_global_batch(const Config& cfg, int world_size) {
+  if (cfg.train.batch_size % world_size != 0)
+    input_error("config key train.batch_size", std::to_string(cfg.train.batch_size) + " does not split evenly over " +
+                                                   std::to_string(world_size) + " ranks (WORLD_SIZE)");
 }
 
 std::vector<torch::Tensor> Trainer::trained_parameters() const {
@@ -144,12 +148,8 @@ void Trainer::check_replicas_agree(int64_t step) {
   if (!group_) return;
   torch::NoGradGuard no_grad;
   // Batch norm per rank (distributed.sync_batch_norm = false): the running
-  // statistics differ by design; rank 0's are kept, as DDP does.
-  const bool synced = cfg_.distributed.sync_batch_norm;
-  if (!synced) group_->broadcast_(net_->buffers(), "rank 0's batch-norm statistics");
-  // Rank 0's values next to ours; each rank reports its largest difference in
-  // its own slot, and one sum gathers them.
-  const std::vector<torch::Tensor> state = replicated_state(synced);
+  // statistics differ by design (validate() takes rank 0's), so only the rest is compared.
+  const std::vector<torch::Tensor> state = replicated_state(cfg_.distributed.sync_batch_norm);
   std::vector<torch::Tensor> rank0;
   for (const auto& t : state) rank0.push_back(t.detach().clone());
   group_->broadcast_(rank0, "rank 0's parameters (agreement check)");
@@ -157,9 +157,7 @@ void Trainer::check_replicas_agree(int64_t step) {
   for (size_t i = 0; i < state.size(); ++i)
     if (state[i].numel() > 0)
       diff = std::max(diff, (state[i].to(torch::kFloat64) - rank0[i].to(torch::kFloat64)).abs().max().item<double>());
-  std::vector<double> slots(size_t(world_), 0.0);
-  slots[size_t(rank_)] = diff;
-  slots = group_->sum(slots, "parameter differences");
+  const std::vector<double> slots = group_->gather(diff, "parameter differences");
   bool drifted = false;
   for (int64_t r = 1; r < world_; ++r)
     if (slots[size_t(r)] != 0.0) {
@@ -355,9 +353,7 @@ int64_t Trainer::load_checkpoint(const std::string& path) {
     }
   const int64_t next = dict_get(d, "step", path).item<int64_t>();
   if (group_) {  // every rank read a checkpoint of the same step, then all take rank 0's values
-    std::vector<double> steps(size_t(world_), 0.0);
-    steps[size_t(rank_)] = double(next);
-    const auto all = group_->sum(steps, "the resumed step");
+    const auto all = group_->gather(double(next), "the resumed step");
     for (int64_t r = 0; r < world_; ++r)
       if (all[size_t(r)] != all[0])
         throw DistributedError("rank " + std::to_string(r) + " resumed from step " + c10::str(int64_t(all[size_t(r)])) +

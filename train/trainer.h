@@ -48,6 +48,9 @@ struct ValStats {
   double loss = 0, hs_psnr_db = 0, depth_rmse_m = 0, depth_mae_m = 0, peak = 0;
 };
 
+// InputError naming train.batch_size unless the global batch splits evenly over the ranks.
+void check_global_batch(const Config& cfg, int world_size);
+
 class Trainer {
  public:
   // Optics, DOE, network and optimiser from the config (no data yet). With a

@@ -36,18 +36,6 @@ namespace hsd::bench {
 
 namespace {
 
-// The synthetic global batch of bench_train: random radiance over every depth layer.
-train::Batch global_batch(const Config& cfg, int64_t batch, int64_t patch) {
-  const int64_t L = int64_t(cfg.optics.wavelengths_nm.size()), Z = int64_t(cfg.optics.depths_m.size());
-  torch::manual_seed(int64_t(cfg.seed));
-  train::Batch b;
-  b.radiance = torch::rand({batch, L, patch, patch});
-  b.depth_m = torch::empty({batch, 1, patch, patch});
-  for (int64_t z = 0; z < Z; ++z)
-    b.depth_m.narrow(3, z * patch / Z, (z + 1) * patch / Z - z * patch / Z).fill_(cfg.optics.depths_m[size_t(z)]);
-  return b;
-}
-
 train::Batch slice(const train::Batch& b, int64_t first, int64_t n) {
   return {b.radiance.narrow(0, first, n).contiguous(), b.depth_m.narrow(0, first, n).contiguous(), first};
 }
@@ -67,7 +55,7 @@ int run_child(Config cfg, const AppArgs& args, int64_t batch, int64_t patch, int
   }
   cfg.train.batch_size = mode == "solo" ? batch / ranks : batch;
   train::Trainer t(cfg, group);
-  const train::Batch b = slice(global_batch(cfg, batch, patch), rank * (batch / ranks), batch / ranks);
+  const train::Batch b = slice(striped_batch(cfg, batch, patch), rank * (batch / ranks), batch / ranks);
   int64_t k = 0;
   t.step(b, k++);  // warm-up
   const double comm0 = group ? group->seconds_communicating() : 0.0;
@@ -173,7 +161,7 @@ int bench_dist(Config cfg, const AppArgs& args, BenchOutput& out) {
   {
     log::info("one process, " + std::to_string(all_threads) + " threads ...");
     train::Trainer t(cfg);
-    const train::Batch b = global_batch(cfg, batch, patch);
+    const train::Batch b = striped_batch(cfg, batch, patch);
     int64_t k = 0;
     one_s = median_seconds([&] { t.step(b, k++); }, repeats);
   }

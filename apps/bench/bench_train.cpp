@@ -23,13 +23,7 @@ int bench_train(Config cfg, const AppArgs& args, BenchOutput& out) {
   const int64_t L = int64_t(cfg.optics.wavelengths_nm.size()), Z = int64_t(cfg.optics.depths_m.size());
   const double rss_start = current_rss_mib();
   train::Trainer t(cfg);
-  // A patch over every depth layer (vertical stripes), random radiance.
-  torch::manual_seed(int64_t(cfg.seed));
-  train::Batch b;
-  b.radiance = torch::rand({batch, L, patch, patch});
-  b.depth_m = torch::empty({batch, 1, patch, patch});
-  for (int64_t z = 0; z < Z; ++z)
-    b.depth_m.narrow(3, z * patch / Z, (z + 1) * patch / Z - z * patch / Z).fill_(cfg.optics.depths_m[size_t(z)]);
+  const train::Batch b = striped_batch(cfg, batch, patch);
   int64_t k = 0;
   log::info("training steps ...");
   const double t_step = median_seconds([&] { t.step(b, k++); }, repeats);

@@ -8,6 +8,17 @@
 
 namespace hsd::bench {
 
+train::Batch striped_batch(const Config& cfg, int64_t batch, int64_t patch) {
+  const int64_t L = int64_t(cfg.optics.wavelengths_nm.size()), Z = int64_t(cfg.optics.depths_m.size());
+  torch::manual_seed(int64_t(cfg.seed));
+  train::Batch b;
+  b.radiance = torch::rand({batch, L, patch, patch});
+  b.depth_m = torch::empty({batch, 1, patch, patch});
+  for (int64_t z = 0; z < Z; ++z)
+    b.depth_m.narrow(3, z * patch / Z, (z + 1) * patch / Z - z * patch / Z).fill_(cfg.optics.depths_m[size_t(z)]);
+  return b;
+}
+
 double median_seconds(const std::function<void()>& f, int repeats, bool warmup) {
   if (warmup) f();
   std::vector<double> t;

@@ -4,7 +4,14 @@
 #include <string>
 #include <vector>
 
+#include "common/config.h"
+#include "train/trainer.h"
+
 namespace hsd::bench {
+
+// The training benchmarks' batch: `batch` patches of patch × patch px, random
+// radiance (seeded by the config), depth in vertical stripes over every layer.
+train::Batch striped_batch(const Config& cfg, int64_t batch, int64_t patch);
 
 // Runs f `repeats` times (after one untimed warm-up if warmup) and returns the median seconds.
 double median_seconds(const std::function<void()>& f, int repeats, bool warmup = true);
