@@ -11,6 +11,7 @@
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/log.h"
+#include "data/manifest.h"
 #include "model/torchscript_export.h"
 #include "optics/doe.h"
 #include "optics/psf.h"
@@ -24,14 +25,22 @@ namespace {
 
 const char* kUsage =
     "hsd_eval --config FILE (--checkpoint CKPT | --model reconstructor.pt [--doe H.pt]) [--split test]\n"
-    "         [--set key=VALUE ...] --out DIR\n"
+    "         [--data DIR] [--set key=VALUE ...] --out DIR\n"
     "  Evaluates the DOE and network of a training checkpoint on every scene of a\n"
     "  split of data.root: hyperspectral and luminance PSNR/SSIM, depth RMSE/MAE,\n"
     "  ColorChecker reflectance RMSE. Writes DIR/metrics.json, DIR/report.md and\n"
-    "  pictures. With --model, the DOE is DIR_OF_MODEL/doe_height.pt (hsd_export) or --doe.";
+    "  pictures. With --model, the DOE is DIR_OF_MODEL/doe_height.pt (hsd_export) or --doe.\n"
+    "  --data DIR evaluates another dataset (same as --set data.root=DIR), e.g. the\n"
+    "  held-out real-derived set of hsd_scenes --real.";
 
 int run(const AppArgs& args) {
-  const Config cfg = load_config(args.config_path, args.overrides);
+  std::vector<std::string> overrides = args.overrides;
+  if (args.has("--data")) {
+    const std::string dir = args.option("--data", "");
+    if (!data::has_manifest(dir)) input_error("--data", "\"" + dir + "\" holds no manifest.json (hsd_scenes writes one)");
+    overrides.push_back("data.root=" + Json(dir).dump());
+  }
+  const Config cfg = load_config(args.config_path, overrides);
   const std::string ckpt = args.option("--checkpoint", ""), model_path = args.option("--model", "");
   if (ckpt.empty() == model_path.empty())
     input_error("--checkpoint/--model", "give exactly one: a training checkpoint or an exported reconstructor.pt");
@@ -72,6 +81,6 @@ int run(const AppArgs& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  AppSpec spec{"hsd_eval", kUsage, {"--checkpoint", "--model", "--split", "--doe"}, {}, true, true};
+  AppSpec spec{"hsd_eval", kUsage, {"--checkpoint", "--model", "--split", "--doe", "--data"}, {}, true, true};
   return run_app(spec, argc, argv, run);
 }

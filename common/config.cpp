@@ -161,6 +161,29 @@ DataConfig parse_data(const JsonReader& d) {
     if (!(g.colorchecker_depth_m > 0.0 && g.colorchecker_depth_m < g.depth_max_m))
       gr->fail("colorchecker_depth_m", "must be in (0, data.generator.depth_max_m)");
     g.half = gr->get_bool("half", g.half);
+    if (auto lr = gr->optional_child("layouts")) {
+      g.layouts.clear();
+      double total = 0;
+      for (const auto& k : lr->keys()) {
+        if (k != "tabletop" && k != "dead_leaves" && k != "classic_tabletop")
+          lr->fail(k, "is not a layout (tabletop, dead_leaves, classic_tabletop)");
+        const double w = lr->get_number(k);
+        if (!(w >= 0.0 && w <= 1e6)) lr->fail(k, "must be a weight in [0, 1e6]");
+        g.layouts.emplace_back(k, w);
+        total += w;
+      }
+      if (!(total > 0.0)) gr->fail("layouts", "needs a positive weight for at least one layout");
+    }
+    g.texture_dir = gr->get_string("texture_dir", g.texture_dir);
+    g.texture_scale_min = gr->get_number("texture_scale_min", g.texture_scale_min);
+    g.texture_scale_max = gr->get_number("texture_scale_max", g.texture_scale_max);
+    if (!(g.texture_scale_min > 0.0 && g.texture_scale_min <= 100.0)) gr->fail("texture_scale_min", "must be in (0, 100]");
+    if (!(g.texture_scale_max >= g.texture_scale_min && g.texture_scale_max <= 100.0))
+      gr->fail("texture_scale_max", "must be in [texture_scale_min, 100]");
+    g.dead_leaves_max_shapes = gr->get_int("dead_leaves_max_shapes", g.dead_leaves_max_shapes);
+    if (g.dead_leaves_max_shapes < 1 || g.dead_leaves_max_shapes > 1000000) gr->fail("dead_leaves_max_shapes", "must be in [1, 1e6]");
+    g.spectral_exclusion = gr->get_number("spectral_exclusion", g.spectral_exclusion);
+    if (!(g.spectral_exclusion >= 0.0 && g.spectral_exclusion < 0.5)) gr->fail("spectral_exclusion", "must be in [0, 0.5) (relative shape distance)");
   }
   return c;
 }

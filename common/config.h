@@ -6,6 +6,7 @@
 #pragma once
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "common/json_reader.h"
@@ -136,6 +137,15 @@ struct GeneratorConfig {
   bool colorchecker = true;                     // also write the 24-patch ColorChecker scene (test split)
   double colorchecker_depth_m = 1.0;
   bool half = true;                             // spectral channels as 16-bit floats
+  // Scene layouts and their weights (data/textured_scene.h): "tabletop" (textured
+  // room geometry), "dead_leaves" (occluding textured shapes over the whole depth
+  // range), "classic_tabletop" (the flat-coloured generator of earlier results,
+  // ColorChecker-derived spectra; {"classic_tabletop": 1} reproduces it exactly).
+  std::vector<std::pair<std::string, double>> layouts{{"dead_leaves", 0.5}, {"tabletop", 0.5}};
+  std::string texture_dir;                       // photographs for textures; "" = the shipped data/textures
+  double texture_scale_min = 0.25, texture_scale_max = 1.25;  // scene pixels per texture pixel (log-uniform)
+  int64_t dead_leaves_max_shapes = 4000;         // upper bound on the shapes of one dead-leaves scene
+  double spectral_exclusion = 0.05;              // measured spectra whose shape is this close to a ColorChecker patch are dropped
 };
 
 // The 29 CIE illuminants of the spectral augmentation (data/illuminant_augment.h

@@ -112,6 +112,13 @@ void JsonReader::fail(const std::string& key, const std::string& what) const {
   input_error("config key " + path(key), what);
 }
 
+std::vector<std::string> JsonReader::keys() const {
+  std::vector<std::string> k;
+  if (node_->is_object())
+    for (const auto& it : node_->items()) k.push_back(it.key());
+  return k;
+}
+
 bool JsonReader::has(const std::string& key) const { return node_->contains(key); }
 
 const Json& JsonReader::at(const std::string& key) const {

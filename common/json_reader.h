@@ -30,6 +30,7 @@ class JsonReader {
   explicit JsonReader(const Json& root);
 
   bool has(const std::string& key) const;
+  std::vector<std::string> keys() const;  // of this object, in the file's order of nlohmann (sorted)
   JsonReader child(const std::string& key) const;  // object; InputError if missing or not an object
   std::optional<JsonReader> optional_child(const std::string& key) const;
 

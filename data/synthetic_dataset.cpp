@@ -3,6 +3,7 @@
 #include <array>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
 
 #include <torch/torch.h>
 
@@ -12,7 +13,12 @@
 #include "data/image_io.h"
 #include "data/preview.h"
 #include "data/reflectance_library.h"
+#include "data/measured_reflectances.h"
+#include "data/real_test_set.h"
+#include "data/realism_stats.h"
 #include "data/scene_generator.h"
+#include "data/texture_bank.h"
+#include "data/textured_scene.h"
 #include "optics/spectrum.h"
 
 namespace hsd::data {
@@ -32,6 +38,17 @@ Manifest generate_dataset(const Config& cfg, const std::string& dir) {
   const std::vector<double> bands = cfg.optics.wavelengths_m();
   const double bw = cfg.optics.band_width_m();
   const ReflectanceLibrary lib(bands, bw);  // checks the spectral tables before any output
+  // The realistic layouts' sources, loaded only when a layout needs them.
+  bool textured = false;
+  for (const auto& [name, w] : g.layouts) textured |= (w > 0 && name != "classic_tabletop");
+  std::unique_ptr<MeasuredReflectances> measured;
+  std::unique_ptr<TextureBank> textures;
+  if (textured) {
+    measured = std::make_unique<MeasuredReflectances>(bands, bw, g.spectral_exclusion);
+    textures = std::make_unique<TextureBank>(g.texture_dir.empty() ? TextureBank::default_dir() : g.texture_dir);
+  }
+  RealismSpec rspec{bands, bw, cfg.sensor.camera, g.depth_min_m, g.depth_max_m, 8};
+  std::vector<SceneRealism> realism;
   const torch::Tensor d65 = optics::illuminant_bands("D65", bands, bw);
   const std::array<std::pair<const char*, int64_t>, 3> splits{
       {{"train", g.train_scenes}, {"val", g.val_scenes}, {"test", g.test_scenes}}};
@@ -56,7 +73,14 @@ Manifest generate_dataset(const Config& cfg, const std::string& dir) {
     for (int64_t i = 0; i < n; ++i) {
       char stem[64];
       std::snprintf(stem, sizeof stem, "scene_%s_%03lld", name, (long long)i);
-      write_scene(stem, generate_tabletop_scene(g, lib, bands, scene_seed(cfg.seed, split, i)), name);
+      const uint64_t seed = scene_seed(cfg.seed, split, i);
+      const std::string layout = pick_layout(g, seed);
+      GeneratedScene gs = layout == "classic_tabletop" ? generate_tabletop_scene(g, lib, bands, seed)
+                        : layout == "tabletop"
+                            ? generate_textured_tabletop_scene(g, SceneSources{*measured, *textures}, bands, seed)
+                            : generate_dead_leaves_scene(g, SceneSources{*measured, *textures}, bands, seed);
+      realism.push_back(measure_realism(gs.scene, rspec, stem));
+      write_scene(stem, gs, name);
       progress.step();
     }
   }
@@ -72,6 +96,15 @@ Manifest generate_dataset(const Config& cfg, const std::string& dir) {
     progress.step();
   }
   progress.finish();
+  if (!realism.empty()) {
+    const RealismSummary sum = summarise_realism(std::move(realism));
+    const SceneRealism ref = cave_realism(rspec);
+    write_text_file(dir + "/realism.json", realism_json(sum, &ref).dump(2) + "\n");
+    write_text_file(dir + "/realism.md", realism_markdown(sum, &ref));
+    log::info("realism of the generated scenes (" + dir + "/realism.md; reference: the CAVE balloons cube):\n" +
+              realism_markdown(sum, &ref));
+    for (const auto& line : check_realism(sum.mean)) log::info("realism: " + line);
+  }
   write_manifest(dir, m);  // last: a folder with a manifest is complete
   return m;
 }

@@ -4,7 +4,7 @@
 # build time; everything comes from Debian.
 set -euo pipefail
 PKGS=(build-essential cmake ninja-build
-      libtorch-dev libopencv-dev libopenexr-dev nlohmann-json3-dev catch2 libgloo-dev
+      libtorch-dev libopencv-dev libopenexr-dev nlohmann-json3-dev catch2 libgloo-dev zlib1g-dev
       libopenblas0-pthread python3-torch)
 missing=()
 for p in "${PKGS[@]}"; do

@@ -1,0 +1,358 @@
+#include "data/textured_scene.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <random>
+
+#include <torch/torch.h>
+
+#include "common/error.h"
+#include "data/ray_cast.h"
+
+namespace hsd::data {
+
+namespace {
+
+using namespace raycast;
+const auto f64 = torch::TensorOptions().dtype(torch::kFloat64);
+constexpr int64_t kSpectraPerSurface = 4;  // per material
+constexpr int64_t kMaterials = 3;          // per surface
+
+// What a surface looks like: its photo and where the photo sits on it, its
+// measured spectra, its contrast and the gain of the independent noise weight.
+struct SurfaceLook {
+  int64_t texture = 0;
+  torch::Tensor spectra;  // [kMaterials·K, L]: material 0's K spectra, then material 1's, ...
+  double split_lo = 0.35, split_hi = 0.65;  // material = (m > split_lo) + (m > split_hi), m the second noise field
+  double contrast = 1.0, noise_gain = 1.0;
+  double sharpness = 1.0;  // γ of the weights: ŵ ∝ w^γ (large: near-pure measured spectra in patches)
+};
+
+// Per-pixel surface map filled by a layout.
+struct SurfaceMap {
+  torch::Tensor id;      // long [H, W], -1 = no surface (invalid)
+  torch::Tensor tx, ty;  // texture-pixel coordinates [H, W]
+  torch::Tensor shade;   // [H, W] in (0, 1]
+};
+
+double log_uniform(std::mt19937_64& rng, double a, double b) {
+  return std::exp(std::uniform_real_distribution<double>(std::log(a), std::log(b))(rng));
+}
+
+SurfaceLook draw_look(const SceneSources& src, std::mt19937_64& rng) {
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  SurfaceLook s;
+  s.texture = std::uniform_int_distribution<int64_t>(0, src.textures.size() - 1)(rng);
+  s.spectra = src.spectra.draw(rng, kMaterials * kSpectraPerSurface);
+  s.split_lo = 0.25 + 0.2 * U(rng);
+  s.split_hi = 0.55 + 0.2 * U(rng);
+  s.contrast = 0.5 + 0.5 * U(rng);
+  s.noise_gain = 0.3 + 1.2 * U(rng);
+  s.sharpness = 4.0 + 8.0 * U(rng);
+  return s;
+}
+
+// A periodic 1/f^beta field [H, W] (amplitude spectrum), scaled to [0, 1].
+torch::Tensor fractal_field(int64_t H, int64_t W, double beta, std::mt19937_64& rng) {
+  const torch::Tensor ky = torch::fft::fftfreq(H, 1.0, f64).view({H, 1}), kx = torch::fft::fftfreq(W, 1.0, f64).view({1, W});
+  const torch::Tensor k = (ky * ky + kx * kx).sqrt().clamp_min(1.0 / double(std::max(H, W)));
+  std::vector<double> ph(size_t(H * W));
+  std::uniform_real_distribution<double> U(0.0, 2.0 * M_PI);
+  for (auto& p : ph) p = U(rng);
+  torch::Tensor x = torch::real(torch::fft::ifft2(torch::polar(k.pow(-beta), torch::tensor(ph, f64).view({H, W}))));
+  return (x - x.min()) / (x.max() - x.min()).clamp_min(1e-12);
+}
+
+// Texture-pixel coordinates of surface coordinates (a, b) (any unit), with
+// `units_per_texel` units per texture pixel, rotated by theta and offset.
+std::pair<torch::Tensor, torch::Tensor> texel_coords(const torch::Tensor& a, const torch::Tensor& b, double units_per_texel,
+                                                     double theta, double ox, double oy) {
+  const double c = std::cos(theta) / units_per_texel, s = std::sin(theta) / units_per_texel;
+  return {c * a - s * b + ox, s * a + c * b + oy};
+}
+
+// The reflectance cube [L, H, W] float64 from the surface map (formula in the header).
+torch::Tensor paint(const SurfaceMap& m, const std::vector<SurfaceLook>& looks, const TextureBank& tex,
+                    const torch::Tensor& noise, const torch::Tensor& materials, int64_t L) {
+  const int64_t H = m.id.size(0), W = m.id.size(1), n = int64_t(looks.size());
+  const torch::Tensor id = m.id.reshape(-1);
+  const torch::Tensor valid = id >= 0;
+  const torch::Tensor idc = id.clamp_min(0);
+  const size_t ns = size_t(n);
+  std::vector<int64_t> tex_of(ns);
+  std::vector<double> contrast(ns), gain(ns), sharp(ns), lo(ns), hi(ns);
+  for (int64_t k = 0; k < n; ++k)
+    tex_of[size_t(k)] = looks[size_t(k)].texture, contrast[size_t(k)] = looks[size_t(k)].contrast,
+    gain[size_t(k)] = looks[size_t(k)].noise_gain, sharp[size_t(k)] = looks[size_t(k)].sharpness,
+    lo[size_t(k)] = looks[size_t(k)].split_lo, hi[size_t(k)] = looks[size_t(k)].split_hi;
+  const torch::Tensor pix_tex = torch::tensor(tex_of, torch::kLong).index_select(0, idc);
+  // The photos' linear RGB and normalised luminance, one photo at a time over its pixels.
+  torch::Tensor rgb = torch::zeros({3, H * W}, f64), ynorm = torch::zeros({H * W}, f64);
+  const torch::Tensor tx = m.tx.reshape(-1), ty = m.ty.reshape(-1);
+  for (int64_t t = 0; t < tex.size(); ++t) {
+    const torch::Tensor idx = (valid & (pix_tex == t)).nonzero().squeeze(1);
+    if (idx.numel() == 0) continue;
+    const torch::Tensor x = tx.index_select(0, idx).view({1, -1}), y = ty.index_select(0, idx).view({1, -1});
+    const torch::Tensor c = tex.sample(t, x, y).view({3, -1});
+    if (tex.is_grey(t)) {  // three independent weights: the photo at two more places for the second and third
+      const torch::Tensor c2 = tex.sample(t, x + 173.3, y + 91.7).view({3, -1});
+      const torch::Tensor c3 = tex.sample(t, y - 121.1, x + 237.9).view({3, -1});
+      rgb.index_copy_(1, idx, torch::stack({c[0], c2[0], c3[0]}));
+    } else {
+      rgb.index_copy_(1, idx, c);
+    }
+    const torch::Tensor lum = (0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]) / tex.luminance_p95(t);
+    ynorm.index_copy_(0, idx, lum.clamp(0.0, 1.0));
+  }
+  const torch::Tensor pc = torch::tensor(contrast, f64).index_select(0, idc);
+  const torch::Tensor pg = torch::tensor(gain, f64).index_select(0, idc);
+  const torch::Tensor ps = torch::tensor(sharp, f64).index_select(0, idc);
+  torch::Tensor w = torch::cat({rgb, (pg * noise.reshape(-1)).unsqueeze(0)}, 0) + 1e-3;  // [4, HW]
+  w = w / std::get<0>(w.max(0, true));  // in (0, 1], so w^γ cannot overflow
+  w = w.pow(ps.unsqueeze(0));
+  w = w / w.sum(0, true);
+  std::vector<torch::Tensor> spectra;
+  for (const auto& l : looks) spectra.push_back(l.spectra);
+  const torch::Tensor S = torch::stack(spectra);  // [n, kMaterials·K, L]
+  const torch::Tensor mf = materials.reshape(-1);
+  const torch::Tensor material = (mf > torch::tensor(lo, f64).index_select(0, idc)).to(torch::kLong) +
+                                 (mf > torch::tensor(hi, f64).index_select(0, idc)).to(torch::kLong);
+  torch::Tensor mix = torch::zeros({H * W, L}, f64);
+  const torch::Tensor flat = S.reshape({-1, L});  // row (surface, slot)
+  for (int64_t k = 0; k < kSpectraPerSurface; ++k) {
+    const torch::Tensor row = idc * (kMaterials * kSpectraPerSurface) + material * kSpectraPerSurface + k;
+    mix += w[k].unsqueeze(1) * flat.index_select(0, row);
+  }
+  const torch::Tensor bright = (1.0 - pc) + pc * ynorm;
+  torch::Tensor refl = mix * (bright * m.shade.reshape(-1)).unsqueeze(1);
+  refl = torch::where(valid.unsqueeze(1), refl, torch::full_like(refl, 0.05));  // invalid background: dim neutral
+  return refl.t().reshape({L, H, W}).clamp(0.0, 1.0);
+}
+
+GeneratedScene finish(const torch::Tensor& refl, const torch::Tensor& depth, const torch::Tensor& valid,
+                      const std::vector<double>& wavelengths_m, const std::string& what) {
+  GeneratedScene out;
+  out.scene.wavelengths_m = wavelengths_m;
+  out.scene.kind = SpectralKind::Reflectance;
+  out.scene.spectral = refl.to(torch::kFloat32);
+  out.scene.depth_m = depth.to(torch::kFloat32).unsqueeze(0);
+  out.scene.mask = valid.to(torch::kFloat32).unsqueeze(0);
+  const torch::Tensor dv = depth.masked_select(valid);
+  char buf[320];
+  std::snprintf(buf, sizeof buf, "%s; depth %.2f-%.2f m; %.1f %% invalid", what.c_str(),
+                dv.numel() ? dv.min().item<double>() : 0.0, dv.numel() ? dv.max().item<double>() : 0.0,
+                100.0 * (1.0 - valid.to(torch::kFloat64).mean().item<double>()));
+  out.notes = buf;
+  return out;
+}
+
+}  // namespace
+
+std::string pick_layout(const GeneratorConfig& g, uint64_t seed) {
+  std::mt19937_64 rng(seed ^ 0xA0761D6478BD642Full);
+  double total = 0;
+  for (const auto& [name, w] : g.layouts) total += w;
+  const double u = std::uniform_real_distribution<double>(0.0, total)(rng);
+  double acc = 0;
+  for (const auto& [name, w] : g.layouts) {
+    acc += w;
+    if (w > 0 && u < acc) return name;
+  }
+  for (auto it = g.layouts.rbegin(); it != g.layouts.rend(); ++it)
+    if (it->second > 0) return it->first;
+  throw InputError("config key data.generator.layouts: no layout has a positive weight");
+}
+
+GeneratedScene generate_textured_tabletop_scene(const GeneratorConfig& g, const SceneSources& src,
+                                                const std::vector<double>& wavelengths_m, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  auto uni = [&](double a, double b) { return a + (b - a) * U(rng); };
+  const int64_t H = g.height_px, W = g.width_px, L = int64_t(wavelengths_m.size());
+  const Rays r = make_rays(H, W, g.fov_deg);
+  const double dmin = g.depth_min_m, dmax = g.depth_max_m;
+  std::vector<Surface> surfaces;
+  std::map<std::string, int> counts;
+
+  // Back wall, tilted, at 0.5-1.0 of depth_max_m (uniform in inverse depth), nothing beyond dmax.
+  const double a = uni(-25, 25) * M_PI / 180, b = uni(-15, 15) * M_PI / 180;
+  const std::array<double, 3> n{std::sin(a) * std::cos(b), std::sin(b), std::cos(a) * std::cos(b)};
+  double wall_z = 1.0 / uni(1.0 / dmax, 2.0 / dmax);
+  wall_z = std::max(wall_z, 1.3 * dmin);
+  Hit wall = hit_plane(r, n, n[2] * wall_z);
+  const double far = torch::where(torch::isfinite(wall.t), wall.t, torch::zeros_like(wall.t)).max().item<double>();
+  if (far > dmax) wall_z *= dmax / far, wall = hit_plane(r, n, n[2] * wall_z);
+  surfaces.push_back({"wall", wall});
+  // Table below the eye in 80 % of scenes, its nearest visible point >= dmin.
+  const bool table = U(rng) < 0.8;
+  const double y_t = uni(1.0, 1.6) * dmin * r.tan_v;
+  if (table) {
+    Hit h = hit_plane(r, {0, 1, 0}, y_t);
+    h.t = torch::where(h.t <= std::min(wall_z * 1.001, dmax), h.t, inf_like(h.t));
+    surfaces.push_back({"table", h});
+  }
+  // Objects, distances uniform in inverse depth over [dmin, 0.9 wall].
+  const int64_t n_obj = std::uniform_int_distribution<int64_t>(g.objects_min, g.objects_max)(rng);
+  const double far_obj = 0.9 * wall_z;
+  for (int64_t k = 0; k < n_obj; ++k) {
+    double zc = 1.0 / uni(1.0 / far_obj, 1.0 / dmin);
+    const double s = uni(0.1, 0.35) * zc * r.tan_h;
+    zc = std::max(zc, dmin + 1.8 * s);
+    const double xc = uni(-0.9, 0.9) * zc * r.tan_h;
+    const bool on_table = table && U(rng) < 0.5 && zc * r.tan_v > y_t * 0.5;
+    const int kind = std::uniform_int_distribution<int>(0, 3)(rng);
+    if (kind == 0) {
+      const double yc = on_table ? y_t - s : uni(-0.8, 0.8) * zc * r.tan_v;
+      surfaces.push_back({"sphere", hit_sphere(r, {xc, yc, zc}, s)});
+    } else if (kind == 1) {
+      const std::array<double, 3> e{s * uni(0.5, 1.2), s * uni(0.5, 1.2), s * uni(0.5, 1.0)};
+      const double yc = on_table ? y_t - e[1] : uni(-0.8, 0.8) * zc * r.tan_v;
+      surfaces.push_back({"box", hit_box(r, {xc, yc, zc}, e, uni(0, M_PI / 2))});
+    } else if (kind == 2) {
+      const double h = s * uni(1.0, 3.0);
+      const double bottom = on_table ? y_t : uni(-0.5, 0.8) * zc * r.tan_v;
+      surfaces.push_back({"cylinder", hit_cylinder(r, xc, zc, s * uni(0.4, 0.8), bottom - h, bottom)});
+    } else {
+      const double yaw = uni(-50, 50) * M_PI / 180, pitch = uni(-30, 30) * M_PI / 180;
+      const std::array<double, 3> u{std::cos(yaw), 0, std::sin(yaw)};
+      const std::array<double, 3> v{-std::sin(yaw) * std::sin(pitch), std::cos(pitch), std::cos(yaw) * std::sin(pitch)};
+      const double ca = s * uni(0.8, 1.5), cb = s * uni(0.8, 1.5);
+      const double yc = on_table ? y_t - cb * std::cos(pitch) : uni(-0.8, 0.8) * zc * r.tan_v;
+      surfaces.push_back({"card", hit_card(r, {xc, yc, zc}, u, v, ca, cb)});
+    }
+    counts[surfaces.back().what]++;
+  }
+  const Composite c = zbuffer(surfaces, H, W);
+  const torch::Tensor hit = torch::isfinite(c.t);
+  const torch::Tensor depth = torch::where(hit, c.t, torch::full_like(c.t, dmax));
+  // Surface coordinates in metres: the two world axes least aligned with the normal.
+  const torch::Tensor px = depth * r.dx, py = depth * r.dy, pz = depth;
+  const torch::Tensor ax = c.nx.abs(), ay = c.ny.abs(), az = c.nz.abs();
+  const torch::Tensor major_x = (ax >= ay) & (ax >= az), major_y = (ay > ax) & (ay >= az);
+  const torch::Tensor su = torch::where(major_x, pz, px), sv = torch::where(major_y, pz, py);
+  // Lambertian shading under one light up-left-front, as in the classic layout.
+  const double ll = std::sqrt(0.4 * 0.4 + 0.6 * 0.6 + 0.7 * 0.7);
+  torch::Tensor ndotl = (c.nx * -0.4 + c.ny * -0.6 + c.nz * -0.7) / ll;
+  const torch::Tensor facing = (c.nx * r.dx + c.ny * r.dy + c.nz) < 0;
+  ndotl = torch::where(facing, ndotl, -ndotl);
+  SurfaceMap m;
+  m.id = torch::where(hit, c.id, torch::full_like(c.id, -1));
+  m.shade = 0.4 + 0.6 * ndotl.clamp_min(0);
+  m.tx = torch::zeros({H, W}, f64), m.ty = torch::zeros({H, W}, f64);
+  std::vector<SurfaceLook> looks;
+  for (size_t k = 0; k < surfaces.size(); ++k) {
+    looks.push_back(draw_look(src, rng));
+    const torch::Tensor sel = m.id == int64_t(k);
+    const double theta = uni(0, 2 * M_PI), ox = uni(0, 4096), oy = uni(0, 4096);
+    const double pix_per_texel = log_uniform(rng, g.texture_scale_min, g.texture_scale_max);
+    if (!sel.any().item<bool>()) continue;
+    const double z_ref = depth.masked_select(sel).median().item<double>();
+    const auto [tx, ty] = texel_coords(su, sv, pix_per_texel * z_ref / r.focal_px, theta, ox, oy);
+    m.tx = torch::where(sel, tx, m.tx), m.ty = torch::where(sel, ty, m.ty);
+  }
+  const torch::Tensor noise = fractal_field(H, W, uni(1.0, 2.0), rng);
+  const torch::Tensor materials = fractal_field(H, W, uni(1.2, 2.0), rng);
+  const torch::Tensor refl = paint(m, looks, src.textures, noise, materials, L);
+  std::string objs;
+  for (const auto& [k, cnt] : counts) objs += (objs.empty() ? "" : ", ") + std::to_string(cnt) + " " + k + (cnt > 1 ? "s" : "");
+  return finish(refl, depth, hit, wavelengths_m,
+                std::string("tabletop (textured): wall, ") + (table ? "table, " : "") + std::to_string(n_obj) +
+                    " objects (" + (objs.empty() ? "none" : objs) + ")");
+}
+
+GeneratedScene generate_dead_leaves_scene(const GeneratorConfig& g, const SceneSources& src,
+                                          const std::vector<double>& wavelengths_m, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::uniform_real_distribution<double> U(0.0, 1.0);
+  auto uni = [&](double a, double b) { return a + (b - a) * U(rng); };
+  const int64_t H = g.height_px, W = g.width_px, L = int64_t(wavelengths_m.size());
+  const double inv_near = 1.0 / g.depth_min_m, inv_far = 1.0 / g.depth_max_m, range = inv_near - inv_far;
+  const double c_stop = 0.9;  // the background fills the rest
+  const double rmin = std::max(1.5, 0.02 * double(std::min(H, W))), rmax = 0.5 * double(std::min(H, W));
+  struct Shape {
+    double xc, yc, inv, gx, gy, theta, texel, ox, oy;
+  };
+  std::vector<Shape> shapes;
+  std::vector<int32_t> id(size_t(H * W), -1);
+  int64_t covered = 0;
+  double inv_prev = inv_near;
+  while (double(covered) < c_stop * double(H * W) && int64_t(shapes.size()) < g.dead_leaves_max_shapes) {
+    const double cov = double(covered) / double(H * W);
+    // Inverse depth from the covered fraction (+ jitter), never nearer than an earlier (occluding) shape.
+    const double inv = std::min(inv_prev, inv_near - std::clamp(cov + uni(-0.03, 0.03), 0.0, 1.0) * range);
+    inv_prev = inv;
+    // Power-law radius p(r) ∝ r^-3 on [rmin, rmax] by inversion.
+    const double u = U(rng);
+    const double rr = 1.0 / std::sqrt(1.0 / (rmin * rmin) - u * (1.0 / (rmin * rmin) - 1.0 / (rmax * rmax)));
+    const double xc = uni(-0.1 * double(W), 1.1 * double(W)), yc = uni(-0.1 * double(H), 1.1 * double(H));
+    const int kind = std::uniform_int_distribution<int>(0, 2)(rng);
+    const double ar = uni(0.35, 1.0), rot = uni(0, M_PI);
+    // Slant: inverse depth changes by at most 8 % of the range across the shape's radius.
+    const double slope = uni(0.0, 0.08) * range / rr, dir = uni(0, 2 * M_PI);
+    Shape s{xc, yc, inv, slope * std::cos(dir), slope * std::sin(dir), uni(0, 2 * M_PI),
+            log_uniform(rng, g.texture_scale_min, g.texture_scale_max), uni(0, 4096), uni(0, 4096)};
+    const double cr = std::cos(rot), sr = std::sin(rot);
+    const int64_t x0 = std::max<int64_t>(0, int64_t(std::floor(xc - rr))), x1 = std::min<int64_t>(W - 1, int64_t(std::ceil(xc + rr)));
+    const int64_t y0 = std::max<int64_t>(0, int64_t(std::floor(yc - rr))), y1 = std::min<int64_t>(H - 1, int64_t(std::ceil(yc + rr)));
+    const int32_t k = int32_t(shapes.size());
+    for (int64_t y = y0; y <= y1; ++y)
+      for (int64_t x = x0; x <= x1; ++x) {
+        int32_t& p = id[size_t(y * W + x)];
+        if (p >= 0) continue;
+        const double dx = double(x) + 0.5 - xc, dy = double(y) + 0.5 - yc;
+        const double a = (cr * dx + sr * dy) / rr, b = (-sr * dx + cr * dy) / (rr * ar);
+        const bool inside = kind == 0 ? (dx * dx + dy * dy <= rr * rr)
+                          : kind == 1 ? (a * a + b * b <= 1.0)
+                                      : (std::abs(a) <= 0.8 && std::abs(b) <= 0.8);
+        if (inside) p = k, ++covered;
+      }
+    shapes.push_back(s);
+  }
+  // Background: a slanted plane over the farthest (1 - covered) of the range.
+  {
+    const double cov = double(covered) / double(H * W);
+    const double inv_bg = std::min(inv_prev, inv_far + (1.0 - cov) * range);
+    const double dir = uni(0, 2 * M_PI), span = inv_bg - inv_far;
+    const double diag = std::sqrt(double(W * W + H * H));
+    shapes.push_back({0.5 * double(W), 0.5 * double(H), inv_far + 0.5 * span, span / diag * std::cos(dir),
+                      span / diag * std::sin(dir), uni(0, 2 * M_PI), log_uniform(rng, g.texture_scale_min, g.texture_scale_max),
+                      uni(0, 4096), uni(0, 4096)});
+    const int32_t k = int32_t(shapes.size() - 1);
+    for (auto& p : id)
+      if (p < 0) p = k;
+  }
+  const int64_t n = int64_t(shapes.size());
+  const size_t ns = size_t(n);
+  std::vector<double> xc(ns), yc(ns), inv(ns), gx(ns), gy(ns), th(ns), tx(ns), ox(ns), oy(ns);
+  std::vector<SurfaceLook> looks;
+  for (int64_t k = 0; k < n; ++k) {
+    const Shape& s = shapes[size_t(k)];
+    xc[size_t(k)] = s.xc, yc[size_t(k)] = s.yc, inv[size_t(k)] = s.inv, gx[size_t(k)] = s.gx, gy[size_t(k)] = s.gy;
+    th[size_t(k)] = s.theta, tx[size_t(k)] = s.texel, ox[size_t(k)] = s.ox, oy[size_t(k)] = s.oy;
+    looks.push_back(draw_look(src, rng));
+  }
+  const torch::Tensor idt = torch::tensor(id, torch::kInt32).to(torch::kLong).view({H, W});
+  auto per_pixel = [&](const std::vector<double>& v) { return torch::tensor(v, f64).index_select(0, idt.reshape(-1)).view({H, W}); };
+  const torch::Tensor X = torch::arange(W, f64).view({1, W}).expand({H, W}) + 0.5;
+  const torch::Tensor Y = torch::arange(H, f64).view({H, 1}).expand({H, W}) + 0.5;
+  const torch::Tensor DX = X - per_pixel(xc), DY = Y - per_pixel(yc);
+  const torch::Tensor invz = (per_pixel(inv) + per_pixel(gx) * DX + per_pixel(gy) * DY).clamp(inv_far, inv_near);
+  const torch::Tensor TH = per_pixel(th), TX = per_pixel(tx);
+  SurfaceMap m;
+  m.id = idt;
+  m.tx = (torch::cos(TH) * DX - torch::sin(TH) * DY) / TX + per_pixel(ox);
+  m.ty = (torch::sin(TH) * DX + torch::cos(TH) * DY) / TX + per_pixel(oy);
+  // A soft light gradient across the frame, as from one lamp.
+  const double lx = uni(-0.3, 0.3) / double(W), ly = uni(-0.3, 0.3) / double(H);
+  m.shade = (0.85 + lx * (X - 0.5 * double(W)) + ly * (Y - 0.5 * double(H))).clamp(0.4, 1.0);
+  const torch::Tensor noise = fractal_field(H, W, uni(1.0, 2.0), rng);
+  const torch::Tensor materials = fractal_field(H, W, uni(1.2, 2.0), rng);
+  const torch::Tensor refl = paint(m, looks, src.textures, noise, materials, L);
+  const torch::Tensor valid = torch::ones({H, W}, torch::kBool);
+  return finish(refl, 1.0 / invz, valid, wavelengths_m,
+                "dead leaves: " + std::to_string(n - 1) + " occluding textured shapes and a slanted background");
+}
+
+}  // namespace hsd::data
