@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <sstream>
 
 #include "common/error.h"
@@ -175,6 +176,8 @@ DataConfig parse_data(const JsonReader& d) {
       if (!(total > 0.0)) gr->fail("layouts", "needs a positive weight for at least one layout");
     }
     g.texture_dir = gr->get_string("texture_dir", g.texture_dir);
+    if (!g.texture_dir.empty() && !std::filesystem::is_directory(g.texture_dir))
+      gr->fail("texture_dir", "\"" + g.texture_dir + "\" is not a folder (\"\" = the shipped data/textures)");
     g.texture_scale_min = gr->get_number("texture_scale_min", g.texture_scale_min);
     g.texture_scale_max = gr->get_number("texture_scale_max", g.texture_scale_max);
     if (!(g.texture_scale_min > 0.0 && g.texture_scale_min <= 100.0)) gr->fail("texture_scale_min", "must be in (0, 100]");

@@ -1,6 +1,7 @@
 // The apps as a user runs them: exit codes, one-line errors, the contract's
 // output files, and no partial files.
 #include <catch2/catch.hpp>
+#include <cmath>
 #include <array>
 #include <cstdio>
 #include <filesystem>
@@ -286,6 +287,15 @@ TEST_CASE("hsd_scenes writes a deterministic dataset with manifest, previews and
   const auto layout = nlohmann::json::parse(std::ifstream(a / "colorchecker_layout.json"));
   CHECK(layout["patches"].size() == 24);
   CHECK(fs::exists(a / "config.json"));
+  // The realism statistics: per generated scene (not the ColorChecker), their mean, the CAVE reference, the targets.
+  const auto realism = nlohmann::json::parse(std::ifstream(a / "realism.json"));
+  CHECK(realism["scenes"].size() == 4);
+  for (const char* k : {"textured_fraction", "psd_slope", "pcs_99", "rgb_unexplained", "inv_depth_hist", "inv_depth_quarters"})
+    CHECK(realism["mean"].contains(k));
+  // 3 bands: RGB explains them exactly, so the CAVE reference's residual is 0 here (0.048 on the paper's 25).
+  CHECK(realism["reference"]["rgb_unexplained"].get<double>() == Approx(0.0).margin(1e-6));
+  CHECK(realism["targets"].size() == 4);
+  CHECK(fs::exists(a / "realism.md"));
   // A different seed gives different scenes.
   const Run r = run("hsd_scenes --config configs/tiny.json" + sets + " --set seed=9 --out " + (base / "c").string());
   REQUIRE(r.code == 0);
@@ -296,7 +306,10 @@ TEST_CASE("hsd_scenes writes a deterministic dataset with manifest, previews and
            {"data.generator.width_px=4", "data.generator.width_px"},
            {"data.generator.depth_max_m=0.3", "data.generator.depth_max_m"},
            {"data.generator.colour=1", "data.generator.colour"},
-           {"data.illuminants=[\"D65\",3]", "data.illuminants"}}) {
+           {"data.illuminants=[\"D65\",3]", "data.illuminants"},
+           {"'data.generator.layouts={\"forest\":1}'", "data.generator.layouts.forest"},
+           {"'data.generator.layouts={\"tabletop\":0}'", "data.generator.layouts"},
+           {"data.generator.texture_dir=/nonexistent_hsd", "data.generator.texture_dir"}}) {
     const Run bad = run("hsd_scenes --config configs/tiny.json --set " + set + " --out " + (base / "bad").string());
     CHECK(bad.code == 2);
     CHECK_THAT(bad.err, Catch::Contains(key));
@@ -561,4 +574,46 @@ TEST_CASE("hsd_ablate runs the four DOE arms and writes the table and the error-
   const Run bad = run("hsd_ablate --config configs/tiny.json --seeds 0,x --out " + (base / "bad").string());
   CHECK(bad.code == 2);
   CHECK_THAT(bad.err, Catch::Contains("--seeds"));
+}
+
+TEST_CASE("hsd_scenes --real builds the held-out real-derived set and hsd_eval --data evaluates it", "[app][data][eval]") {
+  const fs::path base = fs::temp_directory_path() / "hsd_test_real";
+  fs::remove_all(base);
+  const Run r = run("hsd_scenes --config configs/tiny.json --set data.generator.width_px=48 --set data.generator.height_px=40 --real --out " +
+                    (base / "real").string());
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  const auto m = nlohmann::json::parse(std::ifstream(base / "real" / "manifest.json"));
+  REQUIRE(m["scenes"].size() == 8);  // 7 CAVE placements and the Aloe
+  for (const auto& s : m["scenes"]) {
+    CHECK(s["split"] == "test");
+    const data::SpectralScene sc = data::read_scene_exr((base / "real" / s["file"].get<std::string>()).string());
+    CHECK(sc.spectral.min().item<float>() >= 0.0f);
+    CHECK(sc.spectral.max().item<float>() <= 1.0f);
+    CHECK((sc.mask > 0.5).any().item<bool>());
+  }
+  // The fronto-parallel CAVE scenes: one depth each, real spectra (the cube's, band-integrated).
+  const data::SpectralScene front = data::read_scene_exr((base / "real" / "cave_front_mid.exr").string());
+  CHECK((front.depth_m.max() - front.depth_m.min()).item<float>() < 1e-3f);
+  CHECK(fs::exists(base / "real" / "realism.json"));
+  // A tiny trained system, evaluated on the real-derived set with --data.
+  const std::string sets =
+      " --set data.root=" + (base / "synthetic").string() +
+      " --set model.base_width=4 --set model.levels=2 --set train.batch_size=2 --set train.steps=2"
+      " --set train.val_patches=2 --set data.patch_size_px=16 --set data.generator.train_scenes=2"
+      " --set data.generator.val_scenes=1 --set data.generator.test_scenes=1 --set data.generator.width_px=48"
+      " --set data.generator.height_px=40";
+  REQUIRE(run("hsd_train --config configs/tiny.json" + sets + " --out " + (base / "run").string()).code == 0);
+  const Run e = run("hsd_eval --config configs/tiny.json" + sets + " --checkpoint " + (base / "run/checkpoints/last.pt").string() +
+                    " --data " + (base / "real").string() + " --out " + (base / "eval").string());
+  INFO(e.err);
+  REQUIRE(e.code == 0);
+  const auto j = nlohmann::json::parse(std::ifstream(base / "eval" / "metrics.json"));
+  CHECK(j["scenes"].size() == 8);
+  CHECK(std::isfinite(j["depth_rmse_m"].get<double>()));
+  // --data without a manifest: exit 2 naming the flag.
+  const Run bad = run("hsd_eval --config configs/tiny.json --checkpoint " + (base / "run/checkpoints/last.pt").string() +
+                      " --data " + (base / "nothing").string() + " --out " + (base / "eval2").string());
+  CHECK(bad.code == 2);
+  CHECK_THAT(bad.err, Catch::Contains("--data"));
 }

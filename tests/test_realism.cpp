@@ -11,7 +11,11 @@
 #include <fstream>
 #include <random>
 
+#include <nlohmann/json.hpp>
+
+#include "common/config.h"
 #include "common/error.h"
+#include "data/synthetic_dataset.h"
 #include "data/mat_file.h"
 #include "data/measured_reflectances.h"
 #include "data/real_test_set.h"
@@ -262,4 +266,25 @@ TEST_CASE("realism: the RGB-unexplained residual reproduces the published refere
   const torch::Tensor illum = optics::illuminant_bands("D65", w, 10e-9).to(torch::kFloat64);
   const torch::Tensor omega = optics::camera_response("canon_5d_mark_iii", w, 10e-9).to(torch::kFloat64) * illum.view({1, -1});
   CHECK(data::rgb_unexplained_residual(m.spectra().mm(omega.t()), m.spectra()) == Approx(0.084).margin(0.002));
+}
+
+TEST_CASE("realism: the default generator meets the targets on configs/paper.json", "[data][realism]") {
+  // The issue's targets: textured >= 0.95, slope in [-2.3, -1.7], RGB-unexplained
+  // >= 0.07, every inverse-depth quarter >= 15 %, over the paper config's 16 scenes.
+  const Config cfg = load_config(test::source_path("configs/paper.json"), {"data.generator.colorchecker=false", "threads=2"});
+  const fs::path dir = fs::temp_directory_path() / "hsd_test_realism_paper";
+  fs::remove_all(dir);
+  data::generate_dataset(cfg, dir.string());
+  const auto j = nlohmann::json::parse(std::ifstream(dir / "realism.json"));
+  REQUIRE(j["scenes"].size() == 16);
+  for (const auto& line : j["targets"]) {
+    INFO(line.get<std::string>());
+    CHECK(line.get<std::string>().find("NOT met") == std::string::npos);
+  }
+  const auto& m = j["mean"];
+  CHECK(m["textured_fraction"].get<double>() >= 0.95);
+  CHECK(m["psd_slope"].get<double>() >= -2.3);
+  CHECK(m["psd_slope"].get<double>() <= -1.7);
+  CHECK(m["rgb_unexplained"].get<double>() >= 0.07);
+  for (const auto& q : m["inv_depth_quarters"]) CHECK(q.get<double>() >= 0.15);
 }

@@ -5,18 +5,25 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <unistd.h>
 
 #include <torch/torch.h>
 
 #include "bench/bench_util.h"
 #include "bench/benches.h"
+#include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/log.h"
 #include "data/dataset.h"
 #include "data/illuminant_augment.h"
+#include "data/measured_reflectances.h"
 #include "data/patch_sampler.h"
+#include "data/reflectance_library.h"
+#include "data/scene_generator.h"
 #include "data/synthetic_dataset.h"
+#include "data/texture_bank.h"
+#include "data/textured_scene.h"
 
 namespace hsd::bench {
 
@@ -37,6 +44,24 @@ int bench_data(Config cfg, const AppArgs& args, BenchOutput& out) {
   auto t = clock::now();
   data::generate_dataset(cfg, dir);
   const double t_gen = secs(t) / double(scenes);
+  const Json realism = Json::parse(read_text_file(dir + "/realism.json"));
+  // Each layout alone, generation only (no EXR or previews written): 3 seeds each.
+  std::map<std::string, double> t_layout;
+  {
+    const data::ReflectanceLibrary lib(bands, bw);
+    const data::MeasuredReflectances measured(bands, bw, g.spectral_exclusion);
+    const data::TextureBank textures(g.texture_dir.empty() ? data::TextureBank::default_dir() : g.texture_dir);
+    const data::SceneSources src{measured, textures};
+    for (const std::string layout : {"classic_tabletop", "tabletop", "dead_leaves"}) {
+      t = clock::now();
+      for (uint64_t s = 1; s <= 3; ++s) {
+        if (layout == "classic_tabletop") data::generate_tabletop_scene(g, lib, bands, s);
+        else if (layout == "tabletop") data::generate_textured_tabletop_scene(g, src, bands, s);
+        else data::generate_dead_leaves_scene(g, src, bands, s);
+      }
+      t_layout[layout] = secs(t) / 3.0;
+    }
+  }
   const double mib = [&] {
     double b = 0;
     for (const auto& e : std::filesystem::directory_iterator(dir))
@@ -68,7 +93,9 @@ int bench_data(Config cfg, const AppArgs& args, BenchOutput& out) {
                   {"seconds_sampler_build", t_sampler}, {"sampler_candidates", sampler.candidates()},
                   {"sampler_depth_bins", sampler.depth_bins_used()}, {"patches", cfg.data.patches},
                   {"seconds_draw_patches", t_draw}, {"patch_px", cfg.data.patch_size_px},
-                  {"seconds_extract_per_patch", t_extract}};
+                  {"seconds_extract_per_patch", t_extract}, {"realism_mean", realism["mean"]},
+                  {"realism_targets", realism["targets"]}, {"realism_reference_cave", realism["reference"]},
+                  {"seconds_generate_only", t_layout}};
   char buf[512];
   std::snprintf(buf, sizeof buf,
                 "data path: %lld scenes %lldx%lld, %zu bands, threads %d\n"
@@ -82,6 +109,15 @@ int bench_data(Config cfg, const AppArgs& args, BenchOutput& out) {
                 (long long)cfg.data.patch_size_px, (long long)sampler.depth_bins_used(), (long long)cfg.data.patches, t_draw,
                 t_extract, (long long)cfg.data.patch_size_px);
   out.text = buf;
+  char b2[512];
+  const Json& rm = realism["mean"];
+  std::snprintf(b2, sizeof b2,
+                "layouts alone       %8.3f s classic_tabletop, %.3f s tabletop, %.3f s dead_leaves per scene (no writing)\n"
+                "realism (mean)      textured %.3f, PSD slope %.2f, PCs for 99 %% %lld, RGB-unexplained %.3f\n",
+                t_layout["classic_tabletop"], t_layout["tabletop"], t_layout["dead_leaves"], rm["textured_fraction"].get<double>(),
+                rm["psd_slope"].get<double>(), (long long)rm["pcs_99"].get<int64_t>(), rm["rgb_unexplained"].get<double>());
+  out.text += b2;
+  for (const auto& line : realism["targets"]) out.text += "  " + line.get<std::string>() + "\n";
   return 0;
 }
 
