@@ -1,9 +1,11 @@
 // A whole synthetic dataset on disk (what hsd_scenes writes, and what training
 // generates on first use when data.root holds no manifest): the
-// data.generator.{train,val,test}_scenes tabletop scenes and the ColorChecker
-// scene (test split), each with sRGB (D65) and depth previews, plus
-// manifest.json and colorchecker_layout.json. Scene i of a split has its own
-// seed derived from the config's seed, so changing a count keeps the others.
+// data.generator.{train,val,test}_scenes scenes in the configured layouts and
+// the ColorChecker scene (test split), each with sRGB (D65) and depth
+// previews, plus manifest.json, colorchecker_layout.json, generator.json (what
+// generated it) and realism.json/.md (data/realism_stats.h). Scene i of a split
+// has its own seed derived from the config's seed, so changing a count keeps
+// the others.
 #pragma once
 #include <string>
 
@@ -16,7 +18,10 @@ namespace hsd::data {
 Manifest generate_dataset(const Config& cfg, const std::string& dir);
 
 // data.root if it holds a manifest; otherwise generates it there when
-// data.generate_if_missing, else InputError naming data.root.
+// data.generate_if_missing, else InputError naming data.root. A folder the
+// generator wrote (generator.json records seed, bands and data.generator) is
+// generated again, with a warning, when the config asks for other scenes;
+// folders written by anything else are used as they are.
 std::string ensure_dataset(const Config& cfg);
 
 }  // namespace hsd::data

@@ -23,7 +23,7 @@
 //   tabletop    : the classic room geometry (data/scene_generator.h: tilted back
 //                 wall, table, spheres, boxes, capped cylinders, slanted cards),
 //                 every surface textured; the wall's distance drawn uniformly in
-//                 inverse depth over [0.5, 1]·depth_max_m; no structured-light
+//                 inverse depth over [0.35, 1]·depth_max_m; no structured-light
 //                 shadow masks (every hit pixel is valid).
 //   dead_leaves : occluding shapes (discs, ellipses, rotated rectangles) painted
 //                 front to back (each fills only still-uncovered pixels), radii

@@ -359,4 +359,19 @@ TEST_CASE("data: ensure_dataset generates on first use only when the config allo
   CHECK(m.scenes[0].split == "train");
   const auto loaded = data::load_split(root.string(), "train", with("seed=0").optics.wavelengths_m(), 100e-9, 1);
   CHECK(loaded[0].scene.spectral.sizes() == torch::IntArrayRef({3, 32, 40}));
+  // The same settings again: the folder is used as it is (nothing rewritten).
+  const auto t0 = fs::last_write_time(root / "manifest.json");
+  const int w0 = log::warning_count();
+  data::ensure_dataset(with("data.generate_if_missing=true"));
+  CHECK(fs::last_write_time(root / "manifest.json") == t0);
+  CHECK(log::warning_count() == w0);
+  // Other generator settings: the generator's own folder is made again, with a warning.
+  data::ensure_dataset(with("data.generator.layouts={\"dead_leaves\":1,\"tabletop\":0,\"classic_tabletop\":0}"));
+  CHECK(log::warning_count() == w0 + 1);
+  CHECK_THAT(data::read_manifest(root.string()).scenes[0].notes, Catch::StartsWith("dead leaves"));
+  // A dataset the generator did not write is never replaced.
+  fs::remove(root / "generator.json");
+  data::ensure_dataset(with("seed=5"));
+  CHECK(log::warning_count() == w0 + 1);
+  CHECK_THAT(data::read_manifest(root.string()).scenes[0].notes, Catch::StartsWith("dead leaves"));
 }
