@@ -6,6 +6,7 @@
 // DIR/fisher_curve.png, DIR/psf_atlas_fisher.png and DIR/config.json.
 #include <chrono>
 #include <cstdio>
+#include <tuple>
 
 #include <torch/torch.h>
 
@@ -26,9 +27,11 @@ namespace {
 
 const char* kUsage =
     "hsd_fisher --config FILE [--set key=VALUE ...] --out DIR\n"
-    "  Computes the Cramer-Rao lower bound of inverse depth and wavelength for the\n"
-    "  Fresnel and spiral DOEs and designs a DOE that minimises it (fisher.*: photon\n"
-    "  budget, background, basis, steps). Writes DIR/crlb.json, DIR/crlb.md,\n"
+    "  Computes the Cramer-Rao lower bound of inverse depth and wavelength, with the\n"
+    "  point's position and brightness unknown (fisher.nuisance), for the Fresnel and\n"
+    "  spiral DOEs and designs a DOE that minimises it (fisher.*: photon budget,\n"
+    "  background, aggregate, basis, steps). Every design is also reported with\n"
+    "  nothing unknown besides (1/z, wavelength). Writes DIR/crlb.json, DIR/crlb.md,\n"
     "  DIR/fisher_height.pt, DIR/fisher_curve.png, DIR/psf_atlas_fisher.png and\n"
     "  DIR/config.json. Train from the design with optics.doe.init=fisher and\n"
     "  optics.doe.fisher_path=DIR/fisher_height.pt.";
@@ -41,7 +44,14 @@ std::vector<double> strided(const std::vector<double>& v, int64_t stride) {
 }
 
 Json report_json(const optics::CrlbReport& r) {
+  auto finite = [](double v) { return std::isfinite(v) ? Json(v) : Json("inf"); };
+  Json cond = Json::array();
+  for (int64_t i = 0; i < r.condition.numel(); ++i) cond.push_back(finite(r.condition.view(-1)[i].item<double>()));
   return Json{{"aggregate", r.aggregate.item<double>()},
+              {"aggregate_capped_mean", r.aggregate_capped},
+              {"aggregate_median", r.aggregate_median},
+              {"aggregate_mean", r.aggregate_mean},
+              {"condition_number", cond},
               {"mean_crlb_inv_depth_per_m", r.crlb_inv_depth.mean().item<double>()},
               {"mean_crlb_wavelength_nm", r.crlb_wavelength_nm.mean().item<double>()},
               {"max_condition_number", std::isfinite(r.max_condition) ? Json(r.max_condition) : Json("inf")},
@@ -71,6 +81,9 @@ int run(const AppArgs& args) {
   const auto& zs = cfg.optics.depths_m;
   s.inv_depth_spacing = zs.size() > 1 ? std::fabs(1.0 / zs.front() - 1.0 / zs.back()) / double(zs.size() - 1) : 1.0;
   s.band_width_nm = cfg.optics.band_width_m() * 1e9;
+  s.nuisance = F.nuisance, s.aggregate = F.aggregate, s.aggregate_cap = F.aggregate_cap;
+  optics::FisherSettings known = s;  // the same bounds with position and brightness known
+  known.nuisance.clear();
   setup_threads(cfg.threads);
   make_dirs(args.out_dir);
   const auto t0 = std::chrono::steady_clock::now();
@@ -85,6 +98,8 @@ int run(const AppArgs& args) {
             " depths, " + c10::str(F.photons) + " photons, background " + c10::str(F.background) + " per pixel");
   const optics::CrlbReport r_fresnel = optics::crlb_report(g, material, fresnel.height().to(torch::kFloat64), s);
   const optics::CrlbReport r_spiral = optics::crlb_report(g, material, spiral.height().to(torch::kFloat64), s);
+  const optics::CrlbReport k_fresnel = optics::crlb_report(g, material, fresnel.height().to(torch::kFloat64), known);
+  const optics::CrlbReport k_spiral = optics::crlb_report(g, material, spiral.height().to(torch::kFloat64), known);
 
   // The design: from the unwrapped Fresnel lens (the Fresnel DOE exactly) or flat.
   const double lam0 = design.doe.design_wavelength_m, eta0 = material.index(lam0);
@@ -105,38 +120,56 @@ int run(const AppArgs& args) {
       });
   progress.finish();
   const optics::CrlbReport r_fisher = optics::crlb_report(g, material, d.height_m, s);
+  const optics::CrlbReport k_fisher = optics::crlb_report(g, material, d.height_m, known);
 
   // Outputs: the design on the config's DOE grid.
   const torch::Tensor h_full = optics::design_height_on_grid(
       d, start_on(cfg.optics.doe_samples, cfg.optics.doe_pitch_m), cfg.optics.doe_samples, cfg.optics.doe_pitch_m,
       cfg.optics.aperture_diameter_m, hmax);
   optics::save_height_file(args.out_dir + "/fisher_height.pt", h_full, cfg.optics.doe_pitch_m);
+  std::string nuis;
+  for (const auto& n : s.nuisance) nuis += (nuis.empty() ? "" : ", ") + n;
   const std::string agg_doc =
-      "mean over the (wavelength, depth) grid of sqrt(((crlb_inv_depth / inv_depth_spacing)^2 + (crlb_wavelength / "
-      "band_width)^2) / 2): the bound in units of one depth layer and one band";
+      "per (wavelength, depth) grid point t = sqrt(((crlb_inv_depth / inv_depth_spacing)^2 + (crlb_wavelength / "
+      "band_width)^2) / 2), the bound in units of one depth layer and one band; aggregate = the " + F.aggregate +
+      (F.aggregate == "capped_mean" ? " (mean of min(t, " + c10::str(F.aggregate_cap) + "))" : std::string()) +
+      " of t over the grid; the bound of (1/z, wavelength) with " + (nuis.empty() ? std::string("nothing else") : nuis) +
+      " unknown (Schur complement)";
   Json j{{"units", {{"crlb_inv_depth", "1/m"}, {"crlb_wavelength", "nm"}, {"aggregate", "dimensionless"}}},
          {"aggregation", agg_doc},
          {"settings", {{"photons", F.photons}, {"background_per_pixel", F.background}, {"wavelengths_nm", s.wavelengths_nm},
                        {"depths_m", s.depths_m}, {"inv_depth_spacing_per_m", s.inv_depth_spacing},
                        {"band_width_nm", s.band_width_nm}, {"window_px", F.window_px}, {"design_samples", g.doe_samples},
-                       {"basis", F.basis}, {"start", F.start}, {"steps", F.steps}}},
+                       {"basis", F.basis}, {"start", F.start}, {"steps", F.steps}, {"aggregate", F.aggregate},
+                       {"aggregate_cap", F.aggregate_cap}}},
+         {"nuisance", s.nuisance},
          {"fresnel", report_json(r_fresnel)},
          {"spiral", report_json(r_spiral)},
          {"fisher", report_json(r_fisher)}};
+  j["fresnel"]["without_nuisance"] = report_json(k_fresnel);
+  j["spiral"]["without_nuisance"] = report_json(k_spiral);
+  j["fisher"]["without_nuisance"] = report_json(k_fisher);
   j["fisher"]["curve"] = d.curve;
   write_text_file(args.out_dir + "/crlb.json", j.dump(2) + "\n");
-  char line[256];
+  char line[320];
   std::string md = "# CRLB of the DOE designs\n\n" + std::string("Aggregate: ") + agg_doc + ".\n\n" +
-                   "| DOE | aggregate | mean CRLB 1/z [1/m] | mean CRLB wavelength [nm] | max condition number |\n|---|---|---|---|---|\n";
-  std::string table = "DOE        aggregate   CRLB 1/z [1/m]   CRLB lambda [nm]   max condition\n";
-  for (const auto& [name, r] : std::vector<std::pair<std::string, const optics::CrlbReport*>>{
-           {"fresnel", &r_fresnel}, {"spiral", &r_spiral}, {"fisher", &r_fisher}}) {
-    std::snprintf(line, sizeof line, "| %s | %.4g | %.4g | %.4g | %.3g |\n", name.c_str(), r->aggregate.item<double>(),
-                  r->crlb_inv_depth.mean().item<double>(), r->crlb_wavelength_nm.mean().item<double>(), r->max_condition);
-    md += line;
-    std::snprintf(line, sizeof line, "%-10s %9.4g %16.4g %18.4g %15.3g\n", name.c_str(), r->aggregate.item<double>(),
-                  r->crlb_inv_depth.mean().item<double>(), r->crlb_wavelength_nm.mean().item<double>(), r->max_condition);
-    table += line;
+                   "| DOE | unknown besides (1/z, λ) | aggregate | capped mean | median | mean | mean CRLB 1/z [1/m] | "
+                   "mean CRLB wavelength [nm] | max condition number |\n|---|---|---|---|---|---|---|---|---|\n";
+  std::string table =
+      "DOE        unknown     aggregate  capped mean   median       mean   CRLB 1/z [1/m]   CRLB lambda [nm]   max condition\n";
+  for (const auto& [name, r, k] : std::vector<std::tuple<std::string, const optics::CrlbReport*, const optics::CrlbReport*>>{
+           {"fresnel", &r_fresnel, &k_fresnel}, {"spiral", &r_spiral, &k_spiral}, {"fisher", &r_fisher, &k_fisher}}) {
+    for (const optics::CrlbReport* x : {r, k}) {
+      const std::string unk = x->nuisance.empty() ? std::string("-") : nuis;
+      std::snprintf(line, sizeof line, "| %s | %s | %.4g | %.4g | %.4g | %.4g | %.4g | %.4g | %.3g |\n", name.c_str(), unk.c_str(),
+                    x->aggregate.item<double>(), x->aggregate_capped, x->aggregate_median, x->aggregate_mean,
+                    x->crlb_inv_depth.mean().item<double>(), x->crlb_wavelength_nm.mean().item<double>(), x->max_condition);
+      md += line;
+      std::snprintf(line, sizeof line, "%-10s %-10s %10.4g %12.4g %8.4g %10.4g %16.4g %18.4g %15.3g\n", name.c_str(), unk.c_str(),
+                    x->aggregate.item<double>(), x->aggregate_capped, x->aggregate_median, x->aggregate_mean,
+                    x->crlb_inv_depth.mean().item<double>(), x->crlb_wavelength_nm.mean().item<double>(), x->max_condition);
+      table += line;
+    }
   }
   write_text_file(args.out_dir + "/crlb.md", md);
   std::printf("%s", table.c_str());

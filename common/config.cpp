@@ -276,6 +276,18 @@ Config parse_config(const Json& resolved) {
     if (F.steps < 0 || F.steps > 100000) f->fail("steps", "must be in [0, 100000]");
     F.lr = f->get_number("lr", F.lr);
     if (!(F.lr > 0.0 && F.lr < 10.0)) f->fail("lr", "must be in (0, 10) micrometres");
+    if (f->has("nuisance")) F.nuisance = f->get_string_array("nuisance");
+    for (size_t i = 0; i < F.nuisance.size(); ++i) {
+      const std::string& n = F.nuisance[i];
+      if (n != "x" && n != "y" && n != "N") f->fail("nuisance", "\"" + n + "\" is not a parameter (x, y, N)");
+      for (size_t j = 0; j < i; ++j)
+        if (F.nuisance[j] == n) f->fail("nuisance", "lists \"" + n + "\" twice");
+    }
+    F.aggregate = f->get_string("aggregate", F.aggregate);
+    if (F.aggregate != "capped_mean" && F.aggregate != "median" && F.aggregate != "mean")
+      f->fail("aggregate", "expected \"capped_mean\", \"median\" or \"mean\", got \"" + F.aggregate + "\"");
+    F.aggregate_cap = f->get_number("aggregate_cap", F.aggregate_cap);
+    if (!(F.aggregate_cap > 0.0 && F.aggregate_cap <= 1e6)) f->fail("aggregate_cap", "must be in (0, 1e6]");
   }
   if (auto m = r.optional_child("model")) {
     auto& M = c.model;

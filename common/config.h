@@ -91,6 +91,13 @@ struct FisherConfig {
   std::string start = "fresnel";      // "fresnel" (unwrapped lens) | "flat"
   int64_t steps = 100;
   double lr = 0.02;                   // Adam: micrometres of Zernike coefficient (zernike) or of height (freeform)
+  // Unknown besides (1/z, λ), eliminated by the Schur complement (optics/fisher.h):
+  // "x", "y" (the point's lateral position), "N" (its brightness); [] = both known.
+  std::vector<std::string> nuisance{"x", "y", "N"};
+  // How the per-point bounds become one number (and the design's objective):
+  // "capped_mean" (each point capped at aggregate_cap), "median", "mean" (the earlier one).
+  std::string aggregate = "capped_mean";
+  double aggregate_cap = 10.0;        // layers/bands
 };
 
 // The reconstruction network (model/unet.h).

@@ -1,5 +1,6 @@
 #include "optics/fisher.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 
@@ -32,18 +33,27 @@ FisherGeometry make_fisher_geometry(const PsfSpec& spec, int64_t window_px, int6
 }
 
 torch::Tensor point_psf(const FisherGeometry& g, const torch::Tensor& height_m, const torch::Tensor& inv_depth,
-                        const torch::Tensor& wavelength_nm, double eta0, double deta_dnm) {
+                        const torch::Tensor& wavelength_nm, double eta0, double deta_dnm, const torch::Tensor& shift_x_px,
+                        const torch::Tensor& shift_y_px) {
   const double lam0_nm = wavelength_nm.item<double>();
   const torch::Tensor lam = wavelength_nm * 1e-9;                     // metres
   const torch::Tensor eta = eta0 + (wavelength_nm - lam0_nm) * deta_dnm;  // linearised dispersion
   const double s = g.sensor_distance_m;
   // Pupil field M = A exp(i 2π (η − 1) h / λ)
   const torch::Tensor field = torch::polar(g.aperture, (2.0 * M_PI) * (eta - 1.0) / lam * height_m);
-  // Separable kernel K[m, j] = exp(i(−2π x_m ξ_j/(λ s) + π ξ_j² (D + 1/s)/λ))
-  const torch::Tensor xi = g.pupil_x.view({1, -1}), xm = g.sensor_x.view({-1, 1});
-  const torch::Tensor phase = (-2.0 * M_PI / s) * (xm * xi) / lam + M_PI * xi.pow(2) * (inv_depth + 1.0 / s) / lam;
-  const torch::Tensor K = torch::polar(torch::ones_like(phase), phase);  // [P·n, N]
-  const torch::Tensor F = torch::mm(torch::mm(K, field), K.t());        // [P·n, P·n]
+  // Separable kernel K[m, j] = exp(i(−2π x_m ξ_j/(λ s) + π ξ_j² (D + 1/s)/λ)); a
+  // shift of the PSF by Δ moves every sensor node to x_m − Δ. Rows (y) on the
+  // left of the field [y, x], columns (x) on the right.
+  const torch::Tensor xi = g.pupil_x.view({1, -1});
+  auto kernel = [&](const torch::Tensor& shift_px) {
+    torch::Tensor xm = g.sensor_x.view({-1, 1});
+    if (shift_px.defined()) xm = xm - shift_px * g.pixel_pitch_m;
+    const torch::Tensor phase = (-2.0 * M_PI / s) * (xm * xi) / lam + M_PI * xi.pow(2) * (inv_depth + 1.0 / s) / lam;
+    return torch::polar(torch::ones_like(phase), phase);  // [P·n, N]
+  };
+  const torch::Tensor Ky = kernel(shift_y_px);
+  const torch::Tensor Kx = shift_x_px.defined() || shift_y_px.defined() ? kernel(shift_x_px) : Ky;
+  const torch::Tensor F = torch::mm(torch::mm(Ky, field), Kx.t());  // [P·n, P·n]
   const torch::Tensor re = torch::real(F), im = torch::imag(F);
   const torch::Tensor I = re * re + im * im;
   const int64_t P = g.window_px, n = g.nodes;
@@ -94,14 +104,44 @@ Crlb crlb_from_fisher(const torch::Tensor& fisher) {
   return c;
 }
 
+Crlb crlb_with_nuisance(const torch::Tensor& fisher, int64_t n_interest) {
+  const int64_t K = fisher.size(0);
+  if (n_interest < 1 || n_interest > K) throw InputError("Fisher information: n_interest must be in [1, K]");
+  if (n_interest == K) return crlb_from_fisher(fisher);
+  using torch::indexing::Slice;
+  const torch::Tensor sym = 0.5 * (fisher + fisher.t());
+  const torch::Tensor A = sym.index({Slice(0, n_interest), Slice(0, n_interest)});
+  const torch::Tensor B = sym.index({Slice(0, n_interest), Slice(n_interest, K)});
+  const torch::Tensor C = sym.index({Slice(n_interest, K), Slice(n_interest, K)});
+  const int64_t m = K - n_interest;
+  const torch::Tensor ridge = 1e-12 * C.diagonal().sum().detach().clamp_min(1e-300) * torch::eye(m, fisher.options());
+  const torch::Tensor schur = A - torch::mm(B, torch::linalg_solve(C + ridge, B.t()));
+  return crlb_from_fisher(schur);
+}
+
+namespace {
+const std::vector<std::string>& nuisance_names() {
+  static const std::vector<std::string> names{"x", "y", "N"};
+  return names;
+}
+}  // namespace
+
 CrlbReport crlb_report(const FisherGeometry& g, const Material& material, const torch::Tensor& height_m,
                        const FisherSettings& s) {
+  for (const auto& n : s.nuisance)
+    if (std::find(nuisance_names().begin(), nuisance_names().end(), n) == nuisance_names().end())
+      throw InputError("config key fisher.nuisance: \"" + n + "\" is not a parameter (x, y, N)");
+  if (s.aggregate != "capped_mean" && s.aggregate != "median" && s.aggregate != "mean")
+    throw InputError("config key fisher.aggregate: expected capped_mean, median or mean, got \"" + s.aggregate + "\"");
+  if (!(s.aggregate_cap > 0)) throw InputError("config key fisher.aggregate_cap: must be > 0");
+  auto has = [&](const char* n) { return std::find(s.nuisance.begin(), s.nuisance.end(), n) != s.nuisance.end(); };
   CrlbReport r;
   r.wavelengths_nm = s.wavelengths_nm;
+  r.nuisance = s.nuisance;
   for (double z : s.depths_m) r.inv_depths.push_back(1.0 / z);
   const int64_t L = int64_t(s.wavelengths_nm.size()), Z = int64_t(s.depths_m.size());
-  std::vector<torch::Tensor> cd, cl;
-  torch::Tensor agg = torch::zeros({}, torch::kFloat64);
+  std::vector<torch::Tensor> cd, cl, terms;
+  std::vector<double> cond;
   const bool design = height_m.requires_grad();
   for (int64_t l = 0; l < L; ++l) {
     const double w = s.wavelengths_nm[size_t(l)];
@@ -110,19 +150,39 @@ CrlbReport crlb_report(const FisherGeometry& g, const Material& material, const 
     for (int64_t zi = 0; zi < Z; ++zi) {
       const torch::Tensor D = torch::tensor(r.inv_depths[size_t(zi)], torch::kFloat64).requires_grad_(true);
       const torch::Tensor lam = torch::tensor(w, torch::kFloat64).requires_grad_(true);
-      const torch::Tensor mu = s.photons * point_psf(g, height_m, D, lam, eta0, deta);
-      const auto J = jacobian_by_autograd(mu, {D, lam}, design);
-      const Crlb c = crlb_from_fisher(fisher_from_jacobian(mu, J, s.background));
+      std::vector<torch::Tensor> params{D, lam};
+      torch::Tensor sx, sy, a;
+      // In the order of s.nuisance (their order does not change the bound of (D, λ)).
+      for (const auto& n : s.nuisance) {
+        torch::Tensor p = torch::zeros({}, torch::kFloat64);
+        if (n == "N") p = torch::ones({}, torch::kFloat64);
+        p.requires_grad_(true);
+        (n == "x" ? sx : n == "y" ? sy : a) = p;
+        params.push_back(p);
+      }
+      torch::Tensor mu = s.photons * point_psf(g, height_m, D, lam, eta0, deta, has("x") ? sx : torch::Tensor(),
+                                               has("y") ? sy : torch::Tensor());
+      if (has("N")) mu = mu * a;
+      const auto J = jacobian_by_autograd(mu, params, design);
+      const Crlb c = crlb_with_nuisance(fisher_from_jacobian(mu, J, s.background), 2);
       r.max_condition = std::max(r.max_condition, c.condition);
+      cond.push_back(c.condition);
       cd.push_back(c.crlb[0]);
       cl.push_back(c.crlb[1]);
-      const torch::Tensor a = c.crlb[0] / s.inv_depth_spacing, b = c.crlb[1] / s.band_width_nm;
-      agg = agg + ((a * a + b * b) * 0.5).sqrt();
+      const torch::Tensor u = c.crlb[0] / s.inv_depth_spacing, v = c.crlb[1] / s.band_width_nm;
+      terms.push_back(((u * u + v * v) * 0.5).sqrt());
     }
   }
-  r.aggregate = agg / double(L * Z);
+  const torch::Tensor t = torch::stack(terms);
+  const torch::Tensor mean = t.mean(), capped = t.clamp_max(s.aggregate_cap).mean();
+  const torch::Tensor median = std::get<0>(t.view(-1).sort()).select(0, (t.numel() - 1) / 2);  // lower median
+  r.aggregate_mean = mean.item<double>();
+  r.aggregate_capped = capped.item<double>();
+  r.aggregate_median = median.item<double>();
+  r.aggregate = s.aggregate == "mean" ? mean : s.aggregate == "median" ? median : capped;
   r.crlb_inv_depth = torch::stack(cd).detach().view({L, Z});
   r.crlb_wavelength_nm = torch::stack(cl).detach().view({L, Z});
+  r.condition = torch::tensor(cond, torch::kFloat64).view({L, Z});
   return r;
 }
 

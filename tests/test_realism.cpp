@@ -111,7 +111,7 @@ TEST_CASE("realism: inverse-depth histogram", "[data][realism]") {
   CHECK(h2[0] == 1.0);
 }
 
-TEST_CASE("MAT-files: the CAVE cube and the Vrhel spectra read as published; bad files refused", "[data][realism]") {
+TEST_CASE("MAT-files: the CAVE cube and the Vrhel spectra read as published, and bad files are refused", "[data][realism]") {
   const data::MatFile cave = data::read_mat_file(data::cave_balloons_path());
   const torch::Tensor c = cave.at("Omsi").tensor();
   REQUIRE(c.sizes() == torch::IntArrayRef({101, 101, 31}));
@@ -166,7 +166,7 @@ TEST_CASE("measured training spectra: none is near a ColorChecker patch, all in 
   CHECK(std::get<0>(torch::unique_dim(d1, 0)).size(0) == 4);
 }
 
-TEST_CASE("texture bank: the shipped photographs load as linear RGB; bad folders are refused", "[data][realism]") {
+TEST_CASE("texture bank: the shipped photographs load as linear RGB, and bad folders are refused", "[data][realism]") {
   const data::TextureBank bank(data::TextureBank::default_dir());
   REQUIRE(bank.size() >= 8);
   for (int64_t i = 0; i < bank.size(); ++i) {
@@ -229,7 +229,7 @@ TEST_CASE("realistic layouts: deterministic, in range, textured, depth spread in
                            data::generate_dead_leaves_scene(g, src, w, 2).scene.depth_m));
 }
 
-TEST_CASE("layouts: weights pick layouts; classic only reproduces the earlier generator", "[data][realism]") {
+TEST_CASE("layouts: weights pick layouts, and classic alone reproduces the earlier generator", "[data][realism]") {
   GeneratorConfig g;
   g.layouts = {{"classic_tabletop", 1.0}};
   for (uint64_t s = 0; s < 20; ++s) CHECK(data::pick_layout(g, s) == "classic_tabletop");
