@@ -125,4 +125,20 @@ Composite zbuffer(const std::vector<Surface>& s, int64_t H, int64_t W) {
   return c;
 }
 
+std::pair<torch::Tensor, torch::Tensor> surface_coordinates(const Composite& c, const Rays& r, const torch::Tensor& depth) {
+  const torch::Tensor px = depth * r.dx, py = depth * r.dy, pz = depth;
+  const torch::Tensor ax = c.nx.abs(), ay = c.ny.abs(), az = c.nz.abs();
+  const torch::Tensor major_x = (ax >= ay) & (ax >= az), major_y = (ay > ax) & (ay >= az);
+  return {torch::where(major_x, pz, px), torch::where(major_y, pz, py)};
+}
+
+torch::Tensor lambert_cosine(const Composite& c, const Rays& r) {
+  const double ll = std::sqrt(0.4 * 0.4 + 0.6 * 0.6 + 0.7 * 0.7);
+  const std::array<double, 3> l{-0.4 / ll, -0.6 / ll, -0.7 / ll};
+  torch::Tensor ndotl = c.nx * l[0] + c.ny * l[1] + c.nz * l[2];
+  const torch::Tensor facing = (c.nx * r.dx + c.ny * r.dy + c.nz) < 0;  // normal towards the camera
+  ndotl = torch::where(facing, ndotl, -ndotl);
+  return ndotl.clamp_min(0);
+}
+
 }  // namespace hsd::data::raycast

@@ -8,6 +8,7 @@
 #include <array>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <torch/types.h>
@@ -45,5 +46,12 @@ struct Composite {
   torch::Tensor t, id, nx, ny, nz;  // nearest hit, its surface index (-1 = none), its normal
 };
 Composite zbuffer(const std::vector<Surface>& s, int64_t H, int64_t W);
+
+// In-surface coordinates [m] of the hits at `depth`: the two world axes least
+// aligned with each pixel's normal ({u, v}, [H, W] each).
+std::pair<torch::Tensor, torch::Tensor> surface_coordinates(const Composite& c, const Rays& r, const torch::Tensor& depth);
+// Lambert's cosine max(0, n·l) for one light up-left-front of the scene, the
+// normal turned towards the camera [H, W].
+torch::Tensor lambert_cosine(const Composite& c, const Rays& r);
 
 }  // namespace hsd::data::raycast

@@ -11,6 +11,7 @@
 
 #include "common/error.h"
 #include "data/ray_cast.h"
+#include "data/tabletop_objects.h"
 
 namespace hsd::data {
 
@@ -110,52 +111,13 @@ GeneratedScene generate_tabletop_scene(const GeneratorConfig& g, const Reflectan
   }
   // Objects, distances uniform in inverse depth.
   const int64_t n_obj = std::uniform_int_distribution<int64_t>(g.objects_min, g.objects_max)(rng);
-  const double far_obj = 0.9 * wall_z;
-  for (int64_t k = 0; k < n_obj; ++k) {
-    const double inv = uni(1.0 / far_obj, 1.0 / dmin);
-    double zc = 1.0 / inv;
-    const double s = uni(0.08, 0.25) * zc * r.tan_h;  // size: 8-25 % of the half-width at that distance
-    zc = std::max(zc, dmin + 1.8 * s);                 // nearest surface stays beyond dmin
-    const double xc = uni(-0.9, 0.9) * zc * r.tan_h;
-    const bool on_table = table && U(rng) < 0.6 && zc * r.tan_v > y_t * 0.5;
-    const int kind = std::uniform_int_distribution<int>(0, 3)(rng);
-    if (kind == 0) {
-      const double yc = on_table ? y_t - s : uni(-0.8, 0.8) * zc * r.tan_v;
-      surfaces.push_back({"sphere", hit_sphere(r, {xc, yc, zc}, s)});
-    } else if (kind == 1) {
-      const std::array<double, 3> e{s * uni(0.5, 1.2), s * uni(0.5, 1.2), s * uni(0.5, 1.0)};
-      const double yc = on_table ? y_t - e[1] : uni(-0.8, 0.8) * zc * r.tan_v;
-      surfaces.push_back({"box", hit_box(r, {xc, yc, zc}, e, uni(0, M_PI / 2))});
-    } else if (kind == 2) {
-      const double h = s * uni(1.0, 3.0);
-      const double bottom = on_table ? y_t : uni(-0.5, 0.8) * zc * r.tan_v;
-      surfaces.push_back({"cylinder", hit_cylinder(r, xc, zc, s * uni(0.4, 0.8), bottom - h, bottom)});
-    } else {
-      const double yaw = uni(-50, 50) * M_PI / 180, pitch = uni(-30, 30) * M_PI / 180;
-      const std::array<double, 3> u{std::cos(yaw), 0, std::sin(yaw)};
-      const std::array<double, 3> v{-std::sin(yaw) * std::sin(pitch), std::cos(pitch), std::cos(yaw) * std::sin(pitch)};
-      const double a = s * uni(0.8, 1.5), b = s * uni(0.8, 1.5);
-      const double yc = on_table ? y_t - b * std::cos(pitch) : uni(-0.8, 0.8) * zc * r.tan_v;
-      surfaces.push_back({"card", hit_card(r, {xc, yc, zc}, u, v, a, b)});
-    }
-    counts[surfaces.back().what]++;
-  }
+  add_tabletop_objects(r, n_obj, dmin, 0.9 * wall_z, table, y_t, ObjectPlacement{0.08, 0.25, 0.6}, rng, surfaces, counts);
 
   const Composite c = zbuffer(surfaces, H, W);
   const torch::Tensor hit = torch::isfinite(c.t);
   torch::Tensor depth = torch::where(hit, c.t, torch::full_like(c.t, dmax));
-  // Surface coordinates: the two world axes least aligned with the normal.
-  const torch::Tensor px = depth * r.dx, py = depth * r.dy, pz = depth;
-  const torch::Tensor ax = c.nx.abs(), ay = c.ny.abs(), az = c.nz.abs();
-  const torch::Tensor major_x = (ax >= ay) & (ax >= az), major_y = (ay > ax) & (ay >= az);
-  const torch::Tensor su = torch::where(major_x, pz, px), sv = torch::where(major_y, pz, py);
-  // Shading: one light up-left-front of the scene.
-  const double ll = std::sqrt(0.4 * 0.4 + 0.6 * 0.6 + 0.7 * 0.7);
-  const std::array<double, 3> l{-0.4 / ll, -0.6 / ll, -0.7 / ll};
-  torch::Tensor ndotl = c.nx * l[0] + c.ny * l[1] + c.nz * l[2];
-  const torch::Tensor facing = (c.nx * r.dx + c.ny * r.dy + c.nz) < 0;  // normal towards the camera
-  ndotl = torch::where(facing, ndotl, -ndotl);
-  const torch::Tensor shade = 0.3 + 0.7 * ndotl.clamp_min(0);
+  const auto [su, sv] = surface_coordinates(c, r, depth);
+  const torch::Tensor shade = 0.3 + 0.7 * lambert_cosine(c, r);  // one light up-left-front of the scene
 
   torch::Tensor refl = torch::zeros({L, H, W}, f64);
   const std::vector<std::string> kinds{"flat", "noise", "noise", "stripes", "checker", "edges"};

@@ -10,6 +10,7 @@
 
 #include "common/error.h"
 #include "data/ray_cast.h"
+#include "data/tabletop_objects.h"
 
 namespace hsd::data {
 
@@ -193,53 +194,16 @@ GeneratedScene generate_textured_tabletop_scene(const GeneratorConfig& g, const 
     h.t = torch::where(h.t <= std::min(wall_z * 1.001, dmax), h.t, inf_like(h.t));
     surfaces.push_back({"table", h});
   }
-  // Objects, distances uniform in inverse depth over [dmin, 0.9 wall].
+  // Objects, distances uniform in inverse depth over [dmin, 0.9 wall], a little larger than the classic ones.
   const int64_t n_obj = std::uniform_int_distribution<int64_t>(g.objects_min, g.objects_max)(rng);
-  const double far_obj = 0.9 * wall_z;
-  for (int64_t k = 0; k < n_obj; ++k) {
-    double zc = 1.0 / uni(1.0 / far_obj, 1.0 / dmin);
-    const double s = uni(0.1, 0.35) * zc * r.tan_h;
-    zc = std::max(zc, dmin + 1.8 * s);
-    const double xc = uni(-0.9, 0.9) * zc * r.tan_h;
-    const bool on_table = table && U(rng) < 0.5 && zc * r.tan_v > y_t * 0.5;
-    const int kind = std::uniform_int_distribution<int>(0, 3)(rng);
-    if (kind == 0) {
-      const double yc = on_table ? y_t - s : uni(-0.8, 0.8) * zc * r.tan_v;
-      surfaces.push_back({"sphere", hit_sphere(r, {xc, yc, zc}, s)});
-    } else if (kind == 1) {
-      const std::array<double, 3> e{s * uni(0.5, 1.2), s * uni(0.5, 1.2), s * uni(0.5, 1.0)};
-      const double yc = on_table ? y_t - e[1] : uni(-0.8, 0.8) * zc * r.tan_v;
-      surfaces.push_back({"box", hit_box(r, {xc, yc, zc}, e, uni(0, M_PI / 2))});
-    } else if (kind == 2) {
-      const double h = s * uni(1.0, 3.0);
-      const double bottom = on_table ? y_t : uni(-0.5, 0.8) * zc * r.tan_v;
-      surfaces.push_back({"cylinder", hit_cylinder(r, xc, zc, s * uni(0.4, 0.8), bottom - h, bottom)});
-    } else {
-      const double yaw = uni(-50, 50) * M_PI / 180, pitch = uni(-30, 30) * M_PI / 180;
-      const std::array<double, 3> u{std::cos(yaw), 0, std::sin(yaw)};
-      const std::array<double, 3> v{-std::sin(yaw) * std::sin(pitch), std::cos(pitch), std::cos(yaw) * std::sin(pitch)};
-      const double ca = s * uni(0.8, 1.5), cb = s * uni(0.8, 1.5);
-      const double yc = on_table ? y_t - cb * std::cos(pitch) : uni(-0.8, 0.8) * zc * r.tan_v;
-      surfaces.push_back({"card", hit_card(r, {xc, yc, zc}, u, v, ca, cb)});
-    }
-    counts[surfaces.back().what]++;
-  }
+  add_tabletop_objects(r, n_obj, dmin, 0.9 * wall_z, table, y_t, ObjectPlacement{0.1, 0.35, 0.5}, rng, surfaces, counts);
   const Composite c = zbuffer(surfaces, H, W);
   const torch::Tensor hit = torch::isfinite(c.t);
   const torch::Tensor depth = torch::where(hit, c.t, torch::full_like(c.t, dmax));
-  // Surface coordinates in metres: the two world axes least aligned with the normal.
-  const torch::Tensor px = depth * r.dx, py = depth * r.dy, pz = depth;
-  const torch::Tensor ax = c.nx.abs(), ay = c.ny.abs(), az = c.nz.abs();
-  const torch::Tensor major_x = (ax >= ay) & (ax >= az), major_y = (ay > ax) & (ay >= az);
-  const torch::Tensor su = torch::where(major_x, pz, px), sv = torch::where(major_y, pz, py);
-  // Lambertian shading under one light up-left-front, as in the classic layout.
-  const double ll = std::sqrt(0.4 * 0.4 + 0.6 * 0.6 + 0.7 * 0.7);
-  torch::Tensor ndotl = (c.nx * -0.4 + c.ny * -0.6 + c.nz * -0.7) / ll;
-  const torch::Tensor facing = (c.nx * r.dx + c.ny * r.dy + c.nz) < 0;
-  ndotl = torch::where(facing, ndotl, -ndotl);
+  const auto [su, sv] = surface_coordinates(c, r, depth);
   SurfaceMap m;
   m.id = torch::where(hit, c.id, torch::full_like(c.id, -1));
-  m.shade = 0.4 + 0.6 * ndotl.clamp_min(0);
+  m.shade = 0.4 + 0.6 * lambert_cosine(c, r);  // one light up-left-front, as in the classic layout
   m.tx = torch::zeros({H, W}, f64), m.ty = torch::zeros({H, W}, f64);
   std::vector<SurfaceLook> looks;
   for (size_t k = 0; k < surfaces.size(); ++k) {

@@ -436,14 +436,32 @@ TEST_CASE("hsd_fisher writes the CRLB table and a design that training and hsd_p
     CHECK(j[k]["aggregate"].get<double>() > 0.0);
   }
   CHECK(j["fisher"]["aggregate"].get<double>() <= j["fresnel"]["aggregate"].get<double>());
+  // The nuisance set used, the three aggregates, per-point condition numbers, and the same without nuisance parameters.
+  CHECK(j["nuisance"] == nlohmann::json({"x", "y", "N"}));
+  for (const char* k : {"fresnel", "spiral", "fisher"}) {
+    for (const char* a : {"aggregate_capped_mean", "aggregate_median", "aggregate_mean", "condition_number"}) CHECK(j[k].contains(a));
+    CHECK(j[k]["aggregate"] == j[k]["aggregate_capped_mean"]);
+    REQUIRE(j[k].contains("without_nuisance"));
+    // Unknown position and brightness never make a bound smaller.
+    CHECK(j[k]["aggregate_mean"].get<double>() >= j[k]["without_nuisance"]["aggregate_mean"].get<double>() * (1 - 1e-9));
+  }
   // The design is a height-map file for optics.doe.init = "fisher".
   const Run psf = run("hsd_psf --config configs/tiny.json --set optics.doe.init=fisher --set optics.doe.fisher_path=" +
                       (out / "fisher_height.pt").string() + " --out " + (out / "psf").string());
   INFO(psf.err);
   CHECK(psf.code == 0);
-  const Run bad = run("hsd_fisher --config configs/tiny.json --set fisher.basis=pixels --out " + (out / "bad").string());
-  CHECK(bad.code == 2);
-  CHECK_THAT(bad.err, Catch::Contains("fisher.basis"));
+  for (const auto& [set, key] : std::vector<std::pair<std::string, std::string>>{
+           {"fisher.basis=pixels", "fisher.basis"},
+           {"'fisher.nuisance=[\"x\",\"z\"]'", "fisher.nuisance"},
+           {"'fisher.nuisance=[\"x\",\"x\"]'", "fisher.nuisance"},
+           {"fisher.aggregate=max", "fisher.aggregate"},
+           {"fisher.aggregate_cap=0", "fisher.aggregate_cap"}}) {
+    const Run bad = run("hsd_fisher --config configs/tiny.json --set " + set + " --out " + (out / "bad").string());
+    CHECK(bad.code == 2);
+    CHECK_THAT(bad.err, Catch::Contains(key));
+    CHECK(lines(bad.err) == 1);
+  }
+  CHECK_FALSE(fs::exists(out / "bad"));
 }
 
 TEST_CASE("hsd_eval and hsd_export on a trained checkpoint: metrics, report, pictures, TorchScript", "[app][eval]") {
