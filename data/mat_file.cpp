@@ -21,7 +21,7 @@ enum : uint32_t {
 // Array classes (mxCELL_CLASS ... mxUINT64_CLASS).
 enum : uint32_t { mxCHAR = 4, mxDOUBLE = 6, mxUINT64 = 15 };
 
-constexpr size_t kMaxInflated = size_t(1) << 32;  // 4 GiB: a guard against a doctored length
+constexpr size_t kMaxInflated = size_t(1) << 30;  // 1 GiB: a guard against a doctored length or a zip bomb
 
 struct Reader {
   const uint8_t* p;
@@ -129,7 +129,7 @@ std::vector<uint8_t> inflate_all(const Element& e, const std::string& file) {
     }
   }
   inflateEnd(&zs);
-  if (ret != Z_STREAM_END) input_error(file, "malformed MAT-file: a compressed element inflates past 4 GiB");
+  if (ret != Z_STREAM_END) input_error(file, "malformed MAT-file: a compressed element inflates past 1 GiB");
   return out;
 }
 
@@ -149,8 +149,8 @@ void read_matrix(const Element& m, bool swap, const std::string& file, MatFile& 
     const int32_t d = load<int32_t>(dims.data + 4 * i, swap);
     if (d < 0) r.fail("negative dimension");
     a.dims.push_back(d);
+    if (d > 0 && count > (int64_t(1) << 33) / d) r.fail("more than 2^33 elements");  // checked before it can overflow
     count *= d;
-    if (count > (int64_t(1) << 33)) r.fail("more than 2^33 elements");
   }
   const Element name = next_element(r);
   if (name.type != miINT8) r.fail("array name");

@@ -15,13 +15,19 @@
 namespace hsd::data {
 
 // Writes into `dir` (created); returns the manifest written. Progress on stderr.
-Manifest generate_dataset(const Config& cfg, const std::string& dir);
+// `cache`: written by ensure_dataset for training (recorded in generator.json,
+// so a later run with other settings may replace it), not by hsd_scenes.
+Manifest generate_dataset(const Config& cfg, const std::string& dir, bool cache = false);
 
 // data.root if it holds a manifest; otherwise generates it there when
-// data.generate_if_missing, else InputError naming data.root. A folder the
-// generator wrote (generator.json records seed, bands and data.generator) is
-// generated again, with a warning, when the config asks for other scenes;
-// folders written by anything else are used as they are.
+// data.generate_if_missing, else InputError naming data.root. When the
+// folder's generator.json (seed, bands, data.generator) differs from the config:
+// a folder training generated itself is generated again, with a warning; one
+// hsd_scenes wrote is used as it is, with a warning (it is your output). A
+// folder of an earlier hsd's generator (no generator.json, but its
+// colorchecker_layout.json) is generated again with a warning: those scenes
+// come back with data.generator.layouts = {"classic_tabletop": 1}. Any other
+// dataset (hsd_import, your own) is used as it is.
 std::string ensure_dataset(const Config& cfg);
 
 }  // namespace hsd::data

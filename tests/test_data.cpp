@@ -369,9 +369,29 @@ TEST_CASE("data: ensure_dataset generates on first use only when the config allo
   data::ensure_dataset(with("data.generator.layouts={\"dead_leaves\":1,\"tabletop\":0,\"classic_tabletop\":0}"));
   CHECK(log::warning_count() == w0 + 1);
   CHECK_THAT(data::read_manifest(root.string()).scenes[0].notes, Catch::StartsWith("dead leaves"));
-  // A dataset the generator did not write is never replaced.
+  // What hsd_scenes wrote is the user's output: other settings give a warning, never a replacement.
+  const fs::path mine = fs::temp_directory_path() / "hsd_test_ensure_scenes";
+  fs::remove_all(mine);
+  auto at_mine = [&](const std::string& extra) {
+    auto o = small;
+    o.push_back("data.root=\"" + mine.string() + "\"");
+    o.push_back(extra);
+    return load_config(test::source_path("configs/tiny.json"), o);
+  };
+  data::generate_dataset(at_mine("seed=0"), mine.string());  // as hsd_scenes does
+  const auto t1 = fs::last_write_time(mine / "manifest.json");
+  data::ensure_dataset(at_mine("seed=3"));
+  CHECK(log::warning_count() == w0 + 2);
+  CHECK(fs::last_write_time(mine / "manifest.json") == t1);
+  // A garbled generator.json: a warning, nothing replaced.
+  std::ofstream(root / "generator.json") << "[1, 2";
+  const auto t2 = fs::last_write_time(root / "manifest.json");
+  data::ensure_dataset(with("seed=4"));
+  CHECK(log::warning_count() == w0 + 3);
+  CHECK(fs::last_write_time(root / "manifest.json") == t2);
+  // A dataset the generator did not write is never replaced, and nothing is said.
   fs::remove(root / "generator.json");
   data::ensure_dataset(with("seed=5"));
-  CHECK(log::warning_count() == w0 + 1);
+  CHECK(log::warning_count() == w0 + 3);
   CHECK_THAT(data::read_manifest(root.string()).scenes[0].notes, Catch::StartsWith("dead leaves"));
 }

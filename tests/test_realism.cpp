@@ -135,7 +135,36 @@ TEST_CASE("MAT-files: the CAVE cube and the Vrhel spectra read as published, and
     std::ofstream((dir / "len.mat").string(), std::ios::binary) << doctored;
     std::ofstream((dir / "text.mat").string()) << "not a mat file at all";
   }
-  for (const char* f : {"cut.mat", "len.mat", "text.mat"}) {
+  {
+    // Uncompressed, by hand: a 3-D double array whose dimensions multiply past int64, and a good 2 x 3 one.
+    auto u32 = [](std::string& b, uint32_t v) { b.append(reinterpret_cast<const char*>(&v), 4); };
+    auto matrix = [&](const std::vector<int32_t>& dims, const std::string& name, const std::vector<double>& values) {
+      std::string m;
+      u32(m, 6), u32(m, 8), u32(m, 6 /*mxDOUBLE*/), u32(m, 0);        // array flags
+      u32(m, 5), u32(m, uint32_t(4 * dims.size()));                    // dimensions (miINT32)
+      for (int32_t d : dims) m.append(reinterpret_cast<const char*>(&d), 4);
+      while (m.size() % 8) m.push_back('\0');
+      u32(m, 1), u32(m, uint32_t(name.size()));                        // name (miINT8)
+      m += name;
+      while (m.size() % 8) m.push_back('\0');
+      u32(m, 9), u32(m, uint32_t(8 * values.size()));                  // real part (miDOUBLE)
+      for (double v : values) m.append(reinterpret_cast<const char*>(&v), 8);
+      std::string e;
+      u32(e, 14), u32(e, uint32_t(m.size()));
+      return e + m;
+    };
+    std::string head(116, ' ');
+    head.replace(0, 19, "MATLAB 5.0 MAT-file");
+    head += std::string(8, '\0') + std::string("\x00\x01IM", 4);
+    std::ofstream((dir / "huge.mat").string(), std::ios::binary) << head + matrix({2147483647, 2147483647, 2147483647}, "x", {});
+    std::ofstream((dir / "good.mat").string(), std::ios::binary) << head + matrix({2, 3}, "a", {1, 2, 3, 4, 5, 6});
+  }
+  // Column-major as MATLAB stores it: a(i, j) = values[i + 2 j].
+  const torch::Tensor good = data::read_mat_file((dir / "good.mat").string()).at("a").tensor();
+  REQUIRE(good.sizes() == torch::IntArrayRef({2, 3}));
+  CHECK(good[0][1].item<double>() == 3.0);
+  CHECK(good[1][2].item<double>() == 6.0);
+  for (const char* f : {"cut.mat", "len.mat", "text.mat", "huge.mat"}) {
     try {
       data::read_mat_file((dir / f).string());
       FAIL("no error for " << f);
