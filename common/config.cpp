@@ -186,7 +186,8 @@ DataConfig parse_data(const JsonReader& d) {
     g.dead_leaves_max_shapes = gr->get_int("dead_leaves_max_shapes", g.dead_leaves_max_shapes);
     if (g.dead_leaves_max_shapes < 1 || g.dead_leaves_max_shapes > 1000000) gr->fail("dead_leaves_max_shapes", "must be in [1, 1e6]");
     g.spectral_exclusion = gr->get_number("spectral_exclusion", g.spectral_exclusion);
-    if (!(g.spectral_exclusion >= 0.0 && g.spectral_exclusion < 0.5)) gr->fail("spectral_exclusion", "must be in [0, 0.5) (relative shape distance)");
+    if (!(g.spectral_exclusion >= 0.0 && g.spectral_exclusion <= 0.2))
+      gr->fail("spectral_exclusion", "must be in [0, 0.2] (relative shape distance to a ColorChecker patch)");
   }
   return c;
 }

@@ -22,6 +22,7 @@ enum : uint32_t {
 enum : uint32_t { mxCHAR = 4, mxDOUBLE = 6, mxUINT64 = 15 };
 
 constexpr size_t kMaxInflated = size_t(1) << 30;  // 1 GiB: a guard against a doctored length or a zip bomb
+constexpr int64_t kMaxElements = int64_t(1) << 27;  // 1 GiB as doubles
 
 struct Reader {
   const uint8_t* p;
@@ -111,9 +112,9 @@ std::vector<uint8_t> inflate_all(const Element& e, const std::string& file) {
   zs.avail_in = uInt(e.bytes);
   int ret = Z_OK;
   while (ret != Z_STREAM_END) {
-    if (out.size() > kMaxInflated) break;
+    if (out.size() >= kMaxInflated) break;
     const size_t old = out.size();
-    out.resize(old + std::max<size_t>(1 << 16, old));
+    out.resize(std::min(kMaxInflated, old + std::max<size_t>(1 << 16, old)));
     zs.next_out = out.data() + old;
     zs.avail_out = uInt(out.size() - old);
     ret = inflate(&zs, Z_NO_FLUSH);
@@ -142,14 +143,14 @@ void read_matrix(const Element& m, bool swap, const std::string& file, MatFile& 
   const uint32_t cls = load<uint32_t>(flags.data, swap) & 0xFF;
   const bool complex = (load<uint32_t>(flags.data, swap) >> 11) & 1;
   const Element dims = next_element(r);
-  if (dims.type != miINT32 || dims.bytes < 8 || dims.bytes % 4) r.fail("dimensions");
+  if (dims.type != miINT32 || dims.bytes < 8 || dims.bytes % 4 || dims.bytes > 4 * 32) r.fail("dimensions (2 to 32 of them)");
   MatArray a;
   int64_t count = 1;
   for (size_t i = 0; i < dims.bytes / 4; ++i) {
     const int32_t d = load<int32_t>(dims.data + 4 * i, swap);
     if (d < 0) r.fail("negative dimension");
     a.dims.push_back(d);
-    if (d > 0 && count > (int64_t(1) << 33) / d) r.fail("more than 2^33 elements");  // checked before it can overflow
+    if (d > 0 && count > kMaxElements / d) r.fail("more than 2^27 elements");  // checked before it can overflow
     count *= d;
   }
   const Element name = next_element(r);

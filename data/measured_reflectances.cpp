@@ -26,7 +26,7 @@ torch::Tensor shape_distances(const torch::Tensor& S, const torch::Tensor& P) {
 }  // namespace
 
 MeasuredReflectances::MeasuredReflectances(const std::vector<double>& wavelengths_m, double band_width_m,
-                                           double exclusion) {
+                                           double exclusion, int64_t min_spectra) {
   const std::string path = source_path();
   const MatFile f = read_mat_file(path);
   const torch::Tensor data = f.at("data").tensor();                      // [31, 170]
@@ -42,7 +42,10 @@ MeasuredReflectances::MeasuredReflectances(const std::vector<double>& wavelength
   const torch::Tensor keep = dist >= exclusion;
   excluded_ = all.size(0) - keep.sum().item<int64_t>();
   spectra_ = all.index({keep}).contiguous();
-  if (spectra_.size(0) < 8) input_error(path, "fewer than 8 spectra remain after excluding those near the ColorChecker");
+  if (spectra_.size(0) < min_spectra)
+    input_error("config key data.generator.spectral_exclusion",
+                "leaves " + std::to_string(spectra_.size(0)) + " of " + std::to_string(all.size(0)) + " measured spectra; a surface needs " +
+                    std::to_string(min_spectra) + " (use a smaller value)");
   min_distance_ = dist.masked_select(keep).min().item<double>();
 }
 

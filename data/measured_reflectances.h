@@ -26,8 +26,10 @@ namespace hsd::data {
 
 class MeasuredReflectances {
  public:
-  // InputError naming the file when the spectra cannot be read.
-  MeasuredReflectances(const std::vector<double>& wavelengths_m, double band_width_m, double exclusion = 0.05);
+  // InputError naming the file when the spectra cannot be read, or naming
+  // data.generator.spectral_exclusion when fewer than min_spectra remain.
+  MeasuredReflectances(const std::vector<double>& wavelengths_m, double band_width_m, double exclusion = 0.05,
+                       int64_t min_spectra = 12);
   const torch::Tensor& spectra() const { return spectra_; }  // float64 [M, L], in [0, 1]
   int64_t size() const { return spectra_.size(0); }
   int64_t excluded() const { return excluded_; }

@@ -21,13 +21,12 @@ Manifest generate_dataset(const Config& cfg, const std::string& dir, bool cache 
 
 // data.root if it holds a manifest; otherwise generates it there when
 // data.generate_if_missing, else InputError naming data.root. When the
-// folder's generator.json (seed, bands, data.generator) differs from the config:
-// a folder training generated itself is generated again, with a warning; one
-// hsd_scenes wrote is used as it is, with a warning (it is your output). A
-// folder of an earlier hsd's generator (no generator.json, but its
-// colorchecker_layout.json) is generated again with a warning: those scenes
-// come back with data.generator.layouts = {"classic_tabletop": 1}. Any other
-// dataset (hsd_import, your own) is used as it is.
+// folder's generator.json (bands and data.generator; not the seed, so runs
+// with other seeds share a dataset) differs from the config: a folder training
+// generated itself is generated again, with a warning; anything else (written
+// by hsd_scenes, by an earlier hsd without generator.json, or unreadable) is
+// used as it is, with a warning: it is the user's. Datasets not made by the
+// generator (hsd_import, your own) are used as they are.
 std::string ensure_dataset(const Config& cfg);
 
 }  // namespace hsd::data

@@ -359,10 +359,12 @@ TEST_CASE("data: ensure_dataset generates on first use only when the config allo
   CHECK(m.scenes[0].split == "train");
   const auto loaded = data::load_split(root.string(), "train", with("seed=0").optics.wavelengths_m(), 100e-9, 1);
   CHECK(loaded[0].scene.spectral.sizes() == torch::IntArrayRef({3, 32, 40}));
-  // The same settings again: the folder is used as it is (nothing rewritten).
+  // The same settings again, or only another seed (runs of several seeds share
+  // one dataset): the folder is used as it is (nothing rewritten).
   const auto t0 = fs::last_write_time(root / "manifest.json");
   const int w0 = log::warning_count();
   data::ensure_dataset(with("data.generate_if_missing=true"));
+  data::ensure_dataset(with("seed=7"));
   CHECK(fs::last_write_time(root / "manifest.json") == t0);
   CHECK(log::warning_count() == w0);
   // Other generator settings: the generator's own folder is made again, with a warning.
@@ -380,18 +382,25 @@ TEST_CASE("data: ensure_dataset generates on first use only when the config allo
   };
   data::generate_dataset(at_mine("seed=0"), mine.string());  // as hsd_scenes does
   const auto t1 = fs::last_write_time(mine / "manifest.json");
-  data::ensure_dataset(at_mine("seed=3"));
+  data::ensure_dataset(at_mine("data.generator.texture_scale_max=1.0"));
   CHECK(log::warning_count() == w0 + 2);
   CHECK(fs::last_write_time(mine / "manifest.json") == t1);
   // A garbled generator.json: a warning, nothing replaced.
   std::ofstream(root / "generator.json") << "[1, 2";
   const auto t2 = fs::last_write_time(root / "manifest.json");
-  data::ensure_dataset(with("seed=4"));
+  data::ensure_dataset(with("data.generator.texture_scale_max=1.1"));
   CHECK(log::warning_count() == w0 + 3);
   CHECK(fs::last_write_time(root / "manifest.json") == t2);
-  // A dataset the generator did not write is never replaced, and nothing is said.
+  // An earlier hsd's generated folder (colorchecker_layout.json, no generator.json): a warning, nothing replaced.
   fs::remove(root / "generator.json");
-  data::ensure_dataset(with("seed=5"));
-  CHECK(log::warning_count() == w0 + 3);
+  std::ofstream(root / "colorchecker_layout.json") << "{}";
+  data::ensure_dataset(with("data.generator.texture_scale_max=1.2"));
+  CHECK(log::warning_count() == w0 + 4);
+  CHECK(fs::last_write_time(root / "manifest.json") == t2);
+  // A dataset the generator did not write is never replaced, and nothing is said.
+  fs::remove(root / "colorchecker_layout.json");
+  data::ensure_dataset(with("data.generator.texture_scale_max=1.2"));
+  CHECK(log::warning_count() == w0 + 4);
+  CHECK(fs::last_write_time(root / "manifest.json") == t2);
   CHECK_THAT(data::read_manifest(root.string()).scenes[0].notes, Catch::StartsWith("dead leaves"));
 }

@@ -136,7 +136,8 @@ TEST_CASE("MAT-files: the CAVE cube and the Vrhel spectra read as published, and
     std::ofstream((dir / "text.mat").string()) << "not a mat file at all";
   }
   {
-    // Uncompressed, by hand: a 3-D double array whose dimensions multiply past int64, and a good 2 x 3 one.
+    // Uncompressed, by hand: a 3-D array whose first two dimensions make 2^33 and whose third
+    // overflowed int64 in a multiply-then-check reader, and a good 2 x 3 one.
     auto u32 = [](std::string& b, uint32_t v) { b.append(reinterpret_cast<const char*>(&v), 4); };
     auto matrix = [&](const std::vector<int32_t>& dims, const std::string& name, const std::vector<double>& values) {
       std::string m;
@@ -156,7 +157,7 @@ TEST_CASE("MAT-files: the CAVE cube and the Vrhel spectra read as published, and
     std::string head(116, ' ');
     head.replace(0, 19, "MATLAB 5.0 MAT-file");
     head += std::string(8, '\0') + std::string("\x00\x01IM", 4);
-    std::ofstream((dir / "huge.mat").string(), std::ios::binary) << head + matrix({2147483647, 2147483647, 2147483647}, "x", {});
+    std::ofstream((dir / "huge.mat").string(), std::ios::binary) << head + matrix({65536, 131072, 2147483647}, "x", {});
     std::ofstream((dir / "good.mat").string(), std::ios::binary) << head + matrix({2, 3}, "a", {1, 2, 3, 4, 5, 6});
   }
   // Column-major as MATLAB stores it: a(i, j) = values[i + 2 j].
@@ -188,6 +189,8 @@ TEST_CASE("measured training spectra: none is near a ColorChecker patch, all in 
   const data::ReflectanceLibrary lib(w, 10e-9);
     CHECK(m.distance_to_colorchecker(0.5 * lib.colorchecker()[7]) == Approx(0.0).margin(1e-6));
   CHECK(m.distance_to_colorchecker(lib.colorchecker()[3]) == Approx(0.0).margin(1e-6));
+  // An exclusion that leaves fewer spectra than a surface needs: InputError naming the key, not an index error later.
+  CHECK_THROWS_WITH(data::MeasuredReflectances(w, 10e-9, 0.45), Catch::Contains("data.generator.spectral_exclusion"));
   // Draws are distinct rows of the library, deterministic for a seed.
   std::mt19937_64 a(3), b(3);
   const torch::Tensor d1 = m.draw(a, 4), d2 = m.draw(b, 4);
