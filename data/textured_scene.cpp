@@ -240,6 +240,10 @@ GeneratedScene generate_dead_leaves_scene(const GeneratorConfig& g, const SceneS
   };
   std::vector<Shape> shapes;
   std::vector<int32_t> id(size_t(H * W), -1);
+  // Per-pixel z-buffer of inverse depth: the nearest shape's plane wins, so a
+  // slanted later shape that comes nearer at an edge occludes correctly.
+  std::vector<double> best(size_t(H * W), -1.0);
+  auto plane = [](const auto& s, double x, double y) { return s.inv + s.gx * (x - s.xc) + s.gy * (y - s.yc); };
   int64_t covered = 0;
   double inv_prev = inv_near;
   while (double(covered) < c_stop * double(H * W) && int64_t(shapes.size()) < g.dead_leaves_max_shapes) {
@@ -263,14 +267,16 @@ GeneratedScene generate_dead_leaves_scene(const GeneratorConfig& g, const SceneS
     const int32_t k = int32_t(shapes.size());
     for (int64_t y = y0; y <= y1; ++y)
       for (int64_t x = x0; x <= x1; ++x) {
-        int32_t& p = id[size_t(y * W + x)];
-        if (p >= 0) continue;
+        const size_t i = size_t(y * W + x);
         const double dx = double(x) + 0.5 - xc, dy = double(y) + 0.5 - yc;
         const double a = (cr * dx + sr * dy) / rr, b = (-sr * dx + cr * dy) / (rr * ar);
         const bool inside = kind == 0 ? (dx * dx + dy * dy <= rr * rr)
                           : kind == 1 ? (a * a + b * b <= 1.0)
                                       : (std::abs(a) <= 0.8 && std::abs(b) <= 0.8);
-        if (inside) p = k, ++covered;
+        if (!inside) continue;
+        const double v = std::clamp(plane(s, double(x) + 0.5, double(y) + 0.5), inv_far, inv_near);
+        if (id[i] < 0) ++covered;
+        if (v > best[i]) best[i] = v, id[i] = k;
       }
     shapes.push_back(s);
   }
@@ -284,8 +290,13 @@ GeneratedScene generate_dead_leaves_scene(const GeneratorConfig& g, const SceneS
                       span / diag * std::sin(dir), uni(0, 2 * M_PI), log_uniform(rng, g.texture_scale_min, g.texture_scale_max),
                       uni(0, 4096), uni(0, 4096)});
     const int32_t k = int32_t(shapes.size() - 1);
-    for (auto& p : id)
-      if (p < 0) p = k;
+    const Shape& bg = shapes.back();
+    for (int64_t y = 0; y < H; ++y)
+      for (int64_t x = 0; x < W; ++x) {  // the background too takes part in the z-buffer
+        const size_t i = size_t(y * W + x);
+        const double v = std::clamp(plane(bg, double(x) + 0.5, double(y) + 0.5), inv_far, inv_near);
+        if (id[i] < 0 || v > best[i]) best[i] = v, id[i] = k;
+      }
   }
   const int64_t n = int64_t(shapes.size());
   const size_t ns = size_t(n);

@@ -25,9 +25,11 @@
 //                 every surface textured; the wall's distance drawn uniformly in
 //                 inverse depth over [0.35, 1]·depth_max_m; no structured-light
 //                 shadow masks (every hit pixel is valid).
-//   dead_leaves : occluding shapes (discs, ellipses, rotated rectangles) painted
-//                 front to back (each fills only still-uncovered pixels), radii
-//                 from a power law p(r) ∝ r^-3 on [0.02, 0.5]·min(H, W) (scale
+//   dead_leaves : occluding shapes (discs, ellipses, rotated rectangles) drawn
+//                 front to back and composited by a per-pixel z-buffer of their
+//                 planes (so occlusion always agrees with depth, also where a
+//                 slanted later shape comes nearer at an edge), radii
+//                 from a power law p(r) ∝ r^-3 on [max(1.5 px, 0.02·min(H, W)), 0.5·min(H, W)] (scale
 //                 invariant, Lee, Mumford & Huang 2001), each a slanted plane
 //                 (inverse depth linear in the image coordinates, as for any
 //                 plane seen by a pinhole camera). A shape's inverse depth
