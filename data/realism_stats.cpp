@@ -207,16 +207,17 @@ RealismSummary summarise_realism(std::vector<SceneRealism> scenes) {
 std::vector<std::string> check_realism(const SceneRealism& m, const RealismTargets& t) {
   std::vector<std::string> out;
   char buf[200];
-  auto line = [&](bool ok, const char* fmt, double v) {
-    std::snprintf(buf, sizeof buf, fmt, v);
-    out.push_back(std::string(buf) + (ok ? ": met" : ": NOT met"));
-  };
-  line(m.textured_fraction >= t.textured_min, "textured fraction %.3f (target >= 0.95)", m.textured_fraction);
-  line(m.psd_slope >= t.slope_lo && m.psd_slope <= t.slope_hi, "power-spectrum slope %.2f (target -2.3 .. -1.7)", m.psd_slope);
-  line(m.rgb_unexplained >= t.rgb_unexplained_min, "RGB-unexplained residual %.3f (target >= 0.07)", m.rgb_unexplained);
+  auto line = [&](bool ok, const std::string& text) { out.push_back(text + (ok ? ": met" : ": NOT met")); };
+  std::snprintf(buf, sizeof buf, "textured fraction %.3f (target >= %.2f)", m.textured_fraction, t.textured_min);
+  line(m.textured_fraction >= t.textured_min, buf);
+  std::snprintf(buf, sizeof buf, "power-spectrum slope %.2f (target %.1f .. %.1f)", m.psd_slope, t.slope_lo, t.slope_hi);
+  line(m.psd_slope >= t.slope_lo && m.psd_slope <= t.slope_hi, buf);
+  std::snprintf(buf, sizeof buf, "RGB-unexplained residual %.3f (target >= %.2f)", m.rgb_unexplained, t.rgb_unexplained_min);
+  line(m.rgb_unexplained >= t.rgb_unexplained_min, buf);
   if (m.has_depth) {
     const double qmin = *std::min_element(m.inv_depth_quarters.begin(), m.inv_depth_quarters.end());
-    line(qmin >= t.quarter_min, "smallest inverse-depth quarter %.3f of the pixels (target >= 0.15)", qmin);
+    std::snprintf(buf, sizeof buf, "smallest inverse-depth quarter %.3f of the pixels (target >= %.2f)", qmin, t.quarter_min);
+    line(qmin >= t.quarter_min, buf);
   }
   return out;
 }

@@ -61,7 +61,8 @@ GeneratedScene generate_dead_leaves_scene(const GeneratorConfig& g, const SceneS
 
 // The layout of the scene with this seed, drawn by g.layouts' weights from a
 // stream of its own (the layout's generator still receives `seed` itself, so
-// layouts = {"classic_tabletop": 1} reproduces the classic generator exactly).
+// weights {dead_leaves 0, tabletop 0, classic_tabletop 1} reproduce the classic
+// generator exactly).
 std::string pick_layout(const GeneratorConfig& g, uint64_t seed);
 
 }  // namespace hsd::data
