@@ -125,6 +125,17 @@ Composite zbuffer(const std::vector<Surface>& s, int64_t H, int64_t W) {
   return c;
 }
 
+Hit hit_tilted_wall(const Rays& r, double a, double b, double* wall_z, double max_depth_m) {
+  const std::array<double, 3> n{std::sin(a) * std::cos(b), std::sin(b), std::cos(a) * std::cos(b)};
+  Hit h = hit_plane(r, n, n[2] * *wall_z);
+  const double far = torch::where(torch::isfinite(h.t), h.t, torch::zeros_like(h.t)).max().item<double>();
+  if (far > max_depth_m) {
+    *wall_z *= max_depth_m / far;
+    h = hit_plane(r, n, n[2] * *wall_z);
+  }
+  return h;
+}
+
 std::pair<torch::Tensor, torch::Tensor> surface_coordinates(const Composite& c, const Rays& r, const torch::Tensor& depth) {
   const torch::Tensor px = depth * r.dx, py = depth * r.dy, pz = depth;
   const torch::Tensor ax = c.nx.abs(), ay = c.ny.abs(), az = c.nz.abs();

@@ -37,6 +37,9 @@ Hit hit_sphere(const Rays& r, std::array<double, 3> C, double rad);
 Hit hit_cylinder(const Rays& r, double cx, double cz, double rad, double y_top, double y_bottom);
 // Box: centre C, half extents e, rotated by theta about the vertical.
 Hit hit_box(const Rays& r, std::array<double, 3> C, std::array<double, 3> e, double theta);
+// A back wall tilted by yaw a and pitch b [rad] crossing the axis at *wall_z,
+// pulled in (and *wall_z with it) so that no visible point lies beyond max_depth_m.
+Hit hit_tilted_wall(const Rays& r, double a, double b, double* wall_z, double max_depth_m);
 
 struct Surface {
   std::string what;

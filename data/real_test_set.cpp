@@ -16,6 +16,7 @@
 #include "data/ray_cast.h"
 #include "data/reflectance_library.h"
 #include "data/rgbd_import.h"
+#include "data/texture_bank.h"
 #include "optics/spectrum.h"
 
 namespace hsd::data {
@@ -23,21 +24,6 @@ namespace hsd::data {
 namespace {
 const auto f64 = torch::TensorOptions().dtype(torch::kFloat64);
 constexpr int64_t kCavePx = 2;  // scene pixels per CAVE pixel: the 101-px cube keeps its detail
-
-// Mirror coordinates into [0, n-1] (period 2(n-1)).
-torch::Tensor mirror(const torch::Tensor& c, int64_t n) {
-  const double period = 2.0 * double(n - 1);
-  const torch::Tensor m = c - torch::floor(c / period) * period;
-  return torch::where(m > double(n - 1), period - m, m);
-}
-
-// cube [L, h, w] sampled bilinearly at pixel coordinates (x, y) [H, W] (mirrored beyond the edges).
-torch::Tensor sample_cube(const torch::Tensor& cube, const torch::Tensor& x, const torch::Tensor& y) {
-  const int64_t h = cube.size(1), w = cube.size(2);
-  const torch::Tensor gx = mirror(x, w) * (2.0 / double(w - 1)) - 1.0, gy = mirror(y, h) * (2.0 / double(h - 1)) - 1.0;
-  const torch::Tensor grid = torch::stack({gx, gy}, -1).unsqueeze(0).to(torch::kFloat32);
-  return torch::grid_sampler(cube.unsqueeze(0).to(torch::kFloat32), grid, 0, 1, true).squeeze(0).to(torch::kFloat64);
-}
 
 struct Placement {
   std::string name, what;
@@ -76,7 +62,7 @@ SpectralScene cave_on_plane(const torch::Tensor& cube, const GeneratorConfig& g,
   SpectralScene s;
   s.wavelengths_m = wl;
   s.kind = SpectralKind::Reflectance;
-  s.spectral = sample_cube(cube, x, y).clamp(0.0, 1.0).to(torch::kFloat32);
+  s.spectral = sample_mirrored(cube, x, y).clamp(0.0, 1.0).to(torch::kFloat32);
   const torch::Tensor depth = t.clamp(g.depth_min_m, g.depth_max_m);
   s.depth_m = depth.to(torch::kFloat32).unsqueeze(0);
   s.mask = (hit & (t >= g.depth_min_m) & (t <= g.depth_max_m)).to(torch::kFloat32).unsqueeze(0);
@@ -130,7 +116,7 @@ Manifest generate_real_test_set(const Config& cfg, const std::string& dir) {
   Manifest m;
   m.wavelengths_nm = cfg.optics.wavelengths_nm;
   m.band_width_nm = bw * 1e9;
-  RealismSpec rspec{bands, bw, cfg.sensor.camera, zn, zf, 8};
+  const RealismSpec rspec = with_band_weights({bands, bw, cfg.sensor.camera, zn, zf, 8});
   std::vector<SceneRealism> realism;
   auto write = [&](const std::string& name, const SpectralScene& s, const std::string& notes) {
     write_scene_exr(dir + "/" + name + ".exr", s, g.half);

@@ -145,18 +145,23 @@ std::vector<double> quarters(const std::vector<double>& h) {
 }
 }  // namespace
 
+RealismSpec with_band_weights(RealismSpec spec) {
+  spec.ybar = cmf_bands(spec.wavelengths_m, spec.band_width_m)[1].to(torch::kFloat64);
+  spec.camera_rgb = optics::camera_response(spec.camera, spec.wavelengths_m, spec.band_width_m).to(torch::kFloat64);
+  spec.d65 = optics::illuminant_bands("D65", spec.wavelengths_m, spec.band_width_m).to(torch::kFloat64);
+  return spec;
+}
+
 SceneRealism measure_realism(const SpectralScene& scene, const RealismSpec& spec, const std::string& name,
                              bool has_depth) {
   if (spec.depth_bins < 4 || spec.depth_bins % 4) throw InputError("realism: depth_bins must be a multiple of 4");
   const int64_t L = scene.spectral.size(0), H = scene.spectral.size(1), W = scene.spectral.size(2);
   if (int64_t(spec.wavelengths_m.size()) != L) throw InputError("realism: the scene's bands differ from the spec's");
-  const torch::Tensor illum = scene.kind == SpectralKind::Reflectance
-                                  ? optics::illuminant_bands("D65", spec.wavelengths_m, spec.band_width_m).to(torch::kFloat64)
-                                  : torch::ones({L}, f64);
-  const torch::Tensor ybar = cmf_bands(spec.wavelengths_m, spec.band_width_m)[1] * illum;  // [L]
+  const RealismSpec w = spec.ybar.defined() ? spec : with_band_weights(spec);
+  const torch::Tensor illum = scene.kind == SpectralKind::Reflectance ? w.d65 : torch::ones({L}, f64);
+  const torch::Tensor ybar = w.ybar * illum;                     // [L]
   const torch::Tensor ywt = ybar / ybar.sum().clamp_min(1e-30);  // a white (or unit radiance) has Y = 1
-  const torch::Tensor omega = optics::camera_response(spec.camera, spec.wavelengths_m, spec.band_width_m).to(torch::kFloat64) *
-                              illum.view({1, L});  // [3, L]
+  const torch::Tensor omega = w.camera_rgb * illum.view({1, L});     // [3, L]
   const torch::Tensor S = scene.spectral.to(torch::kFloat64).reshape({L, H * W});
   const torch::Tensor valid = scene.mask.defined() ? (scene.mask.reshape({H, W}) > 0.5) : torch::ones({H, W}, torch::kBool);
   const torch::Tensor lum = torch::mv(S.t(), ywt).view({H, W});

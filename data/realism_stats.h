@@ -51,7 +51,11 @@ struct RealismSpec {
   std::string camera = "canon_5d_mark_iii";
   double near_m = 0.4, far_m = 2.5;  // the depth histogram's range
   int64_t depth_bins = 8;            // a multiple of 4 (quarters are reported too)
+  // Band weights (filled by with_band_weights; measure_realism computes them when empty):
+  torch::Tensor ybar{}, camera_rgb{}, d65{};  // CIE ȳ [L], camera response [3, L], D65 [L], float64
 };
+// The spec with its band weights computed once (one read of the tables for many scenes).
+RealismSpec with_band_weights(RealismSpec spec);
 
 struct SceneRealism {
   std::string name;

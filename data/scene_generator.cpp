@@ -91,14 +91,8 @@ GeneratedScene generate_tabletop_scene(const GeneratorConfig& g, const Reflectan
   double wall_z = dmax;
   if (wall) {
     const double a = uni(-15, 15) * M_PI / 180, b = uni(-10, 10) * M_PI / 180;
-    const std::array<double, 3> n{std::sin(a) * std::cos(b), std::sin(b), std::cos(a) * std::cos(b)};
     wall_z = uni(0.85, 1.0) * dmax;
-    Hit h = hit_plane(r, n, n[2] * wall_z);
-    const double far = torch::where(torch::isfinite(h.t), h.t, torch::zeros_like(h.t)).max().item<double>();
-    if (far > dmax) {  // pull the plane in so nothing is beyond dmax
-      wall_z *= dmax / far;
-      h = hit_plane(r, n, n[2] * wall_z);
-    }
+    const Hit h = hit_tilted_wall(r, a, b, &wall_z, dmax);
     surfaces.push_back({"wall", h});
   }
   // Table: the plane y = y_t below the eye, nearest visible point >= dmin.

@@ -58,7 +58,7 @@ Manifest generate_dataset(const Config& cfg, const std::string& dir, bool cache)
     measured = std::make_unique<MeasuredReflectances>(bands, bw, g.spectral_exclusion);
     textures = std::make_unique<TextureBank>(g.texture_dir.empty() ? TextureBank::default_dir() : g.texture_dir);
   }
-  RealismSpec rspec{bands, bw, cfg.sensor.camera, g.depth_min_m, g.depth_max_m, 8};
+  const RealismSpec rspec = with_band_weights({bands, bw, cfg.sensor.camera, g.depth_min_m, g.depth_max_m, 8});
   std::vector<SceneRealism> realism;
   const torch::Tensor d65 = optics::illuminant_bands("D65", bands, bw);
   const std::array<std::pair<const char*, int64_t>, 3> splits{

@@ -50,19 +50,19 @@ TextureBank::TextureBank(const std::string& dir, int64_t max_side_px) {
   }
 }
 
-torch::Tensor TextureBank::sample(int64_t i, const torch::Tensor& x, const torch::Tensor& y) const {
-  const torch::Tensor& img = images_[size_t(i)];
-  const int64_t h = img.size(1), w = img.size(2);
+torch::Tensor sample_mirrored(const torch::Tensor& image, const torch::Tensor& x, const torch::Tensor& y) {
+  const int64_t h = image.size(1), w = image.size(2);
   // Mirror into [0, n-1] with period 2(n-1), in float64 before the float32 grid.
   auto mirror = [](const torch::Tensor& c, int64_t n) {
     const double period = 2.0 * double(n - 1);
-    torch::Tensor m = c - torch::floor(c / period) * period;
+    const torch::Tensor m = c - torch::floor(c / period) * period;
     return torch::where(m > double(n - 1), period - m, m);
   };
   const torch::Tensor gx = mirror(x, w) * (2.0 / double(w - 1)) - 1.0;
   const torch::Tensor gy = mirror(y, h) * (2.0 / double(h - 1)) - 1.0;
   const torch::Tensor grid = torch::stack({gx, gy}, -1).unsqueeze(0).to(torch::kFloat32);  // [1, H, W, 2]
-  const torch::Tensor out = torch::grid_sampler(img.unsqueeze(0), grid, /*bilinear*/ 0, /*border*/ 1, /*align_corners*/ true);
+  const torch::Tensor out = torch::grid_sampler(image.unsqueeze(0).to(torch::kFloat32), grid, /*bilinear*/ 0, /*border*/ 1,
+                                                /*align_corners*/ true);
   return out.squeeze(0).to(torch::kFloat64);
 }
 

@@ -12,6 +12,11 @@
 
 namespace hsd::data {
 
+// image [C, h, w] (any float) at pixel coordinates x, y [H, W] (x right, y down,
+// pixel centres at integers): bilinear, mirrored beyond the edges (period
+// 2(n−1), no seams at any scale). Returns float64 [C, H, W].
+torch::Tensor sample_mirrored(const torch::Tensor& image, const torch::Tensor& x, const torch::Tensor& y);
+
 class TextureBank {
  public:
   // InputError naming the folder when it has no readable image, or naming a
@@ -26,10 +31,10 @@ class TextureBank {
   // True when image i has no colour (every pixel's channels within 1/255).
   bool is_grey(int64_t i) const { return grey_[size_t(i)]; }
 
-  // Texture i at texture-pixel coordinates (x right, y down; pixel centres at
-  // integers) x, y [H, W] float64: bilinear, mirrored beyond the edges (no
-  // seams at any scale). Returns float64 [3, H, W].
-  torch::Tensor sample(int64_t i, const torch::Tensor& x, const torch::Tensor& y) const;
+  // Texture i at texture-pixel coordinates x, y [H, W] (sample_mirrored). Returns float64 [3, H, W].
+  torch::Tensor sample(int64_t i, const torch::Tensor& x, const torch::Tensor& y) const {
+    return sample_mirrored(images_[size_t(i)], x, y);
+  }
 
  private:
   std::vector<std::string> names_;

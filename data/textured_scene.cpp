@@ -179,13 +179,8 @@ GeneratedScene generate_textured_tabletop_scene(const GeneratorConfig& g, const 
 
   // Back wall, tilted, at 0.35-1.0 of depth_max_m (uniform in inverse depth), nothing beyond dmax.
   const double a = uni(-25, 25) * M_PI / 180, b = uni(-15, 15) * M_PI / 180;
-  const std::array<double, 3> n{std::sin(a) * std::cos(b), std::sin(b), std::cos(a) * std::cos(b)};
-  double wall_z = 1.0 / uni(1.0 / dmax, 1.0 / (0.35 * dmax));
-  wall_z = std::max(wall_z, 1.3 * dmin);
-  Hit wall = hit_plane(r, n, n[2] * wall_z);
-  const double far = torch::where(torch::isfinite(wall.t), wall.t, torch::zeros_like(wall.t)).max().item<double>();
-  if (far > dmax) wall_z *= dmax / far, wall = hit_plane(r, n, n[2] * wall_z);
-  surfaces.push_back({"wall", wall});
+  double wall_z = std::max(1.0 / uni(1.0 / dmax, 1.0 / (0.35 * dmax)), 1.3 * dmin);
+  surfaces.push_back({"wall", hit_tilted_wall(r, a, b, &wall_z, dmax)});
   // Table below the eye in 80 % of scenes, its nearest visible point >= dmin.
   const bool table = U(rng) < 0.8;
   const double y_t = uni(1.0, 1.6) * dmin * r.tan_v;
