@@ -1,10 +1,15 @@
 // hsd_ablate: the paper's Table 2 protocol on our data: the same network, data
 // and training budget with the DOE fixed to Fresnel, spiral and Fisher, against
-// the end-to-end learned DOE initialised from Fisher; optional seeds. Runs
-// hsd_fisher once, hsd_train and hsd_eval per (arm, seed) as subprocesses
-// (each arm's folder is a normal training/evaluation output), then writes
-// DIR/ablation.md, DIR/ablation.csv (mean ± spread over seeds) and
-// DIR/error_vs_time.png (validation loss against wall-clock time, all arms).
+// the end-to-end learned DOE initialised from Fisher, and the all-in-focus
+// control (no optical cue: what the network gets from scene context alone);
+// optional seeds. Runs hsd_fisher once, hsd_train and hsd_eval per (arm, seed)
+// as subprocesses started from argument vectors, without a shell (each arm's
+// folder is a normal training/evaluation output), then writes DIR/ablation.md
+// (mean ± standard deviation over seeds beside the baselines, and pairwise
+// differences marked where they exceed two standard errors), DIR/ablation.csv
+// and DIR/error_vs_time.png (validation loss against wall-clock time, all arms).
+#include <cerrno>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -12,6 +17,8 @@
 #include <fstream>
 #include <map>
 #include <sstream>
+#include <spawn.h>
+#include <sys/wait.h>
 
 #include <torch/torch.h>
 
@@ -22,6 +29,8 @@
 #include "train/metrics_csv.h"
 #include "train/plot.h"
 
+extern char** environ;
+
 using namespace hsd;
 namespace fs = std::filesystem;
 
@@ -30,31 +39,59 @@ namespace {
 const char* kUsage =
     "hsd_ablate --config FILE [--seeds 0,1,2] [--set key=VALUE ...] --out DIR\n"
     "  Trains the config's network with the DOE fixed to fresnel, spiral and fisher,\n"
-    "  and learned end to end from fisher (same data and budget), evaluates each on\n"
-    "  the test split, and writes DIR/ablation.md, DIR/ablation.csv and\n"
-    "  DIR/error_vs_time.png. Each arm's training and evaluation output is in\n"
+    "  learned end to end from fisher, and the all-in-focus control (no optical\n"
+    "  cue), same data and budget; evaluates each on the test split against the\n"
+    "  baselines, and writes DIR/ablation.md (mean +- std over seeds, pairwise\n"
+    "  2-standard-error comparisons), DIR/ablation.csv and DIR/error_vs_time.png. Each arm's training and evaluation output is in\n"
     "  DIR/<arm>_seed<k>/{run,eval}. Small budget: configs/ablation_quick.json;\n"
     "  the paper's: configs/ablation_paper.json.";
 
 struct Arm {
-  std::string name, init;
-  bool freeze;
+  std::string name, tag;
+  std::vector<std::string> sets;  // --set values of the arm
 };
 
-std::string quote(const std::string& s) { return "'" + s + "'"; }
-
-void run_or_fail(const std::string& cmd, const std::string& what) {
-  log::info("$ " + cmd);
-  const int rc = std::system(cmd.c_str());
-  if (rc != 0) throw NumericalError(what + " failed (exit status " + std::to_string(rc) + "); see its output above");
+// Runs a sub-process from an argument vector (no shell: nothing in a value is
+// interpreted); its output goes to ours. Throws when it fails.
+void run_or_fail(const std::vector<std::string>& argv, const std::string& what) {
+  std::string shown = "$";
+  for (const auto& a : argv) shown += " " + a;
+  log::info(shown);
+  std::vector<char*> cargv;
+  for (const auto& a : argv) cargv.push_back(const_cast<char*>(a.c_str()));
+  cargv.push_back(nullptr);
+  pid_t pid = 0;
+  if (posix_spawn(&pid, cargv[0], nullptr, nullptr, cargv.data(), environ) != 0)
+    throw NumericalError(what + ": could not start " + argv[0]);
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0)
+    if (errno != EINTR) throw NumericalError(what + ": lost its process");
+  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
+    throw NumericalError(what + " failed (" +
+                         (WIFEXITED(status) ? "exit status " + std::to_string(WEXITSTATUS(status))
+                                            : "signal " + std::to_string(WTERMSIG(status))) +
+                         "); see its output above");
 }
 
 // (wall_s, val_loss) pairs of a metrics.csv.
 std::vector<std::pair<double, double>> val_curve(const std::string& csv) {
   std::vector<std::pair<double, double>> out;
   for (const auto& c : train::read_csv_rows(csv))
-    if (c.size() > 3 && !c[3].empty()) out.emplace_back(std::stod(c[1]), std::stod(c[3]));
+    if (c.size() > 3 && !c[3].empty()) out.emplace_back(std::atof(c[1].c_str()), std::atof(c[3].c_str()));
   return out;
+}
+
+struct Stat {
+  double mean = 0, sd = 0;  // sample standard deviation (0 for one seed)
+  size_t n = 0;
+};
+Stat stat(const std::vector<double>& v) {
+  Stat s;
+  s.n = v.size();
+  for (double x : v) s.mean += x / double(v.size());
+  for (double x : v) s.sd += (x - s.mean) * (x - s.mean);
+  s.sd = v.size() > 1 ? std::sqrt(s.sd / double(v.size() - 1)) : 0.0;
+  return s;
 }
 
 int run(const AppArgs& args) {
@@ -72,84 +109,144 @@ int run(const AppArgs& args) {
   }
   make_dirs(args.out_dir);
   const std::string bin = fs::canonical("/proc/self/exe").parent_path().string();
-  std::string common = " --config " + quote(args.config_path);
-  for (const auto& o : args.overrides) common += " --set " + quote(o);
+  std::vector<std::string> common{"--config", args.config_path};
+  for (const auto& o : args.overrides) common.insert(common.end(), {"--set", o});
+  auto command = [&](const std::string& app, std::vector<std::string> rest) {
+    std::vector<std::string> v{bin + "/" + app};
+    v.insert(v.end(), common.begin(), common.end());
+    v.insert(v.end(), rest.begin(), rest.end());
+    return v;
+  };
   // The Fisher DOE, once (it does not depend on the seed of the network).
   const std::string fisher_dir = args.out_dir + "/fisher";
-  run_or_fail(bin + "/hsd_fisher" + common + " --out " + quote(fisher_dir), "hsd_fisher");
-  const std::string fisher_file = fisher_dir + "/fisher_height.pt";
-  const std::vector<Arm> arms{{"fresnel (fixed)", "fresnel", true},
-                              {"spiral (fixed)", "spiral", true},
-                              {"fisher (fixed)", "fisher", true},
-                              {"end-to-end (from fisher)", "fisher", false}};
-  const std::vector<std::string> keys{"hs_psnr_db", "hs_ssim", "lum_psnr_db", "lum_ssim", "depth_rmse_m", "depth_mae_m"};
+  run_or_fail(command("hsd_fisher", {"--out", fisher_dir}), "hsd_fisher");
+  const std::string fisher_file = Json(fisher_dir + "/fisher_height.pt").dump();
+  auto doe_arm = [&](const std::string& name, const std::string& init, bool freeze) {
+    return Arm{name, init + (freeze ? "_fixed" : "_learned"),
+               {"optics.doe.init=\"" + init + "\"", "optics.doe.fisher_path=" + fisher_file,
+                "optics.psf_source=\"simulator\"", std::string("train.freeze_doe=") + (freeze ? "true" : "false")}};
+  };
+  const std::vector<Arm> arms{doe_arm("fresnel (fixed)", "fresnel", true), doe_arm("spiral (fixed)", "spiral", true),
+                              doe_arm("fisher (fixed)", "fisher", true),
+                              doe_arm("end-to-end (from fisher)", "fisher", false),
+                              {"all-in-focus control (no optical cue)", "all_in_focus",
+                               {"optics.psf_source=\"all_in_focus\"", "train.freeze_doe=true"}}};
+  const std::vector<std::string> keys{"hs_psnr_db", "hs_ssim", "lum_psnr_db", "lum_ssim", "depth_rmse_m", "depth_mae_m",
+                                      "colorchecker_reflectance_rmse"};
+  const std::vector<std::string> base_keys{"baseline_upsampling_hs_psnr_db", "baseline_upsampling_hs_ssim",
+                                           "baseline_constant_depth_rmse_m", "baseline_constant_depth_mae_m"};
   std::map<std::string, std::map<std::string, std::vector<double>>> results;  // arm -> metric -> per seed
   std::vector<train::Series> curves;
-  const std::vector<std::array<int, 3>> colours{{40, 40, 200}, {40, 160, 40}, {200, 120, 30}, {20, 20, 20}};
+  const std::vector<std::array<int, 3>> colours{{40, 40, 200}, {40, 160, 40}, {200, 120, 30}, {20, 20, 20}, {160, 160, 160}};
+  const auto t0 = std::chrono::steady_clock::now();
   for (size_t a = 0; a < arms.size(); ++a) {
     for (int64_t seed : seeds) {
-      std::string tag = arms[a].init + (arms[a].freeze ? "_fixed" : "_learned") + "_seed" + std::to_string(seed);
+      const std::string tag = arms[a].tag + "_seed" + std::to_string(seed);
       const std::string dir = args.out_dir + "/" + tag;
-      std::string sets = common + " --set seed=" + std::to_string(seed) + " --set optics.doe.init=" + arms[a].init +
-                         " --set optics.doe.fisher_path=" + quote(fisher_file) +
-                         " --set train.freeze_doe=" + (arms[a].freeze ? "true" : "false");
-      run_or_fail(bin + "/hsd_train" + sets + " --out " + quote(dir + "/run"), "hsd_train (" + tag + ")");
-      run_or_fail(bin + "/hsd_eval" + sets + " --checkpoint " + quote(dir + "/run/checkpoints/last.pt") + " --out " +
-                      quote(dir + "/eval"),
+      std::vector<std::string> sets{"--set", "seed=" + std::to_string(seed)};
+      for (const auto& v : arms[a].sets) sets.insert(sets.end(), {"--set", v});
+      auto with = [&](std::vector<std::string> rest) {
+        std::vector<std::string> v = sets;
+        v.insert(v.end(), rest.begin(), rest.end());
+        return v;
+      };
+      run_or_fail(command("hsd_train", with({"--out", dir + "/run"})), "hsd_train (" + tag + ")");
+      run_or_fail(command("hsd_eval", with({"--checkpoint", dir + "/run/checkpoints/last.pt", "--out", dir + "/eval"})),
                   "hsd_eval (" + tag + ")");
       const Json m = Json::parse(read_text_file(dir + "/eval/metrics.json"));
-      for (const auto& k : keys) results[arms[a].name][k].push_back(m.at(k).get<double>());
-      if (m.contains("colorchecker_reflectance_rmse"))
-        results[arms[a].name]["colorchecker_reflectance_rmse"].push_back(m["colorchecker_reflectance_rmse"].get<double>());
+      for (const auto& k : keys)
+        if (m.contains(k)) results[arms[a].name][k].push_back(m.at(k).get<double>());
+      for (const auto& k : base_keys)
+        if (m.contains(k)) results[arms[a].name][k].push_back(m.at(k).get<double>());
       const auto c = val_curve(dir + "/run/metrics.csv");
       train::Series s{arms[a].name + (seeds.size() > 1 ? " s" + std::to_string(seed) : ""), {}, {}, colours[a]};
       for (const auto& [t, v] : c) s.x.push_back(t), s.y.push_back(v);
       curves.push_back(s);
     }
   }
-  // Table: mean ± spread (standard deviation over seeds; 0 for one seed).
-  auto stat = [](const std::vector<double>& v) {
-    double m = 0, s = 0;
-    for (double x : v) m += x / double(v.size());
-    for (double x : v) s += (x - m) * (x - m);
-    s = v.size() > 1 ? std::sqrt(s / double(v.size() - 1)) : 0.0;
-    return std::make_pair(m, s);
-  };
-  std::vector<std::string> cols = keys;
-  cols.push_back("colorchecker_reflectance_rmse");
+  const double minutes = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() / 60.0;
+  // Tables: mean ± standard deviation over seeds; the baselines (of the
+  // control's and each arm's own sensor image: the upsampling baseline depends
+  // on the optics) on the same pixels.
+  char buf[256];
   std::string csv = "arm,seeds";
-  for (const auto& k : cols) csv += "," + k + "_mean," + k + "_std";
+  for (const auto& k : keys) csv += "," + k + "_mean," + k + "_std";
+  for (const auto& k : base_keys) csv += "," + k + "_mean," + k + "_std";
   csv += "\n";
   std::string md = "# DOE ablation (Baek et al. 2021, Table 2 protocol)\n\nSame network, data and budget; " +
-                   std::to_string(seeds.size()) + " seed(s); mean ± standard deviation over seeds; test split.\n\n| arm |";
-  for (const auto& k : cols) md += " " + k + " |";
-  md += "\n|---|";
-  for (size_t k = 0; k < cols.size(); ++k) md += "---|";
-  md += "\n";
-  char buf[128];
+                   std::to_string(seeds.size()) + " seed(s); mean ± standard deviation over seeds; test split; " +
+                   "every metric over valid pixels. Baselines in brackets, on the same pixels: upsampling alone (the " +
+                   "arm's own sensor image, no network) for HS PSNR, the constant depth for depth RMSE.\n\n";
+  md += "| arm | HS PSNR [dB] | HS SSIM | lum PSNR [dB] | depth RMSE [m] | depth MAE [m] | RMSE / constant | ColorChecker RMSE |\n"
+        "|---|---|---|---|---|---|---|---|\n";
+  auto pm = [&](const std::string& arm, const std::string& k, const char* f) -> std::string {
+    const auto it = results[arm].find(k);
+    if (it == results[arm].end() || it->second.empty()) return "";
+    const Stat st = stat(it->second);
+    std::snprintf(buf, sizeof buf, f, st.mean, st.sd);
+    return buf;
+  };
   for (const auto& arm : arms) {
     csv += "\"" + arm.name + "\"," + std::to_string(seeds.size());
-    md += "| " + arm.name + " |";
-    for (const auto& k : cols) {
-      const auto& v = results[arm.name][k];
-      if (v.empty()) {
-        csv += ",,";
-        md += " |";
-        continue;
-      }
-      const auto [m, s] = stat(v);
-      std::snprintf(buf, sizeof buf, ",%.6g,%.6g", m, s);
-      csv += buf;
-      std::snprintf(buf, sizeof buf, " %.4g ± %.2g |", m, s);
-      md += buf;
-    }
+    for (const auto& k : keys) csv += "," + pm(arm.name, k, "%.6g,%.6g");
+    for (const auto& k : base_keys) csv += "," + pm(arm.name, k, "%.6g,%.6g");
     csv += "\n";
+    std::string ratio;
+    {
+      const auto& r = results[arm.name]["depth_rmse_m"];
+      const auto& b = results[arm.name]["baseline_constant_depth_rmse_m"];
+      if (!r.empty() && r.size() == b.size()) {
+        std::vector<double> q;
+        for (size_t i = 0; i < r.size(); ++i) q.push_back(r[i] / b[i]);
+        const Stat st = stat(q);
+        std::snprintf(buf, sizeof buf, "%.2f ± %.2f", st.mean, st.sd);
+        ratio = buf;
+      }
+    }
+    md += "| " + arm.name + " | " + pm(arm.name, "hs_psnr_db", "%.2f ± %.2f") + " (" +
+          pm(arm.name, "baseline_upsampling_hs_psnr_db", "%.2f") + ") | " + pm(arm.name, "hs_ssim", "%.3f ± %.3f") + " (" +
+          pm(arm.name, "baseline_upsampling_hs_ssim", "%.3f") + ") | " + pm(arm.name, "lum_psnr_db", "%.2f ± %.2f") +
+          " | " + pm(arm.name, "depth_rmse_m", "%.3f ± %.3f") + " (" +
+          pm(arm.name, "baseline_constant_depth_rmse_m", "%.3f") + ") | " + pm(arm.name, "depth_mae_m", "%.3f ± %.3f") +
+          " (" + pm(arm.name, "baseline_constant_depth_mae_m", "%.3f") + ") | " + ratio + " | " +
+          pm(arm.name, "colorchecker_reflectance_rmse", "%.3f ± %.3f") + " |\n";
+  }
+  // Pairwise: is the difference of the means larger than two standard errors
+  // of that difference, sqrt(s1²/n1 + s2²/n2)?
+  md += "\nPairwise differences (row minus column, mean over seeds); **bold** where |difference| > 2 standard errors "
+        "(sqrt(s1²/n1 + s2²/n2)); needs two or more seeds.\n";
+  for (const auto& [k, label] : std::vector<std::pair<std::string, std::string>>{{"depth_rmse_m", "depth RMSE [m]"},
+                                                                                 {"hs_psnr_db", "HS PSNR [dB]"}}) {
+    md += "\n" + label + ":\n\n| |";
+    for (const auto& b : arms) md += " " + b.name + " |";
+    md += "\n|---|";
+    for (size_t i = 0; i < arms.size(); ++i) md += "---|";
     md += "\n";
+    for (const auto& a : arms) {
+      md += "| " + a.name + " |";
+      for (const auto& b : arms) {
+        const auto& va = results[a.name][k];
+        const auto& vb = results[b.name][k];
+        if (&a == &b || va.empty() || vb.empty()) {
+          md += " |";
+          continue;
+        }
+        const Stat sa = stat(va), sb = stat(vb);
+        const double d = sa.mean - sb.mean;
+        const double se = std::sqrt(sa.sd * sa.sd / double(sa.n) + sb.sd * sb.sd / double(sb.n));
+        const bool sig = sa.n > 1 && sb.n > 1 && std::abs(d) > 2.0 * se;
+        std::snprintf(buf, sizeof buf, sig ? " **%+.3g** |" : " %+.3g |", d);
+        md += buf;
+      }
+      md += "\n";
+    }
   }
   const Json crlb = Json::parse(read_text_file(fisher_dir + "/crlb.json"));
   std::snprintf(buf, sizeof buf, "\nAggregated CRLB (hsd_fisher): fresnel %.4g, spiral %.4g, fisher %.4g.\n",
                 crlb["fresnel"]["aggregate"].get<double>(), crlb["spiral"]["aggregate"].get<double>(),
                 crlb["fisher"]["aggregate"].get<double>());
+  md += buf;
+  std::snprintf(buf, sizeof buf, "\nWall-clock time of the whole ablation: %.1f minutes.\n", minutes);
   md += buf;
   md += "\n![validation loss against wall-clock time](error_vs_time.png)\n";
   write_text_file(args.out_dir + "/ablation.csv", csv);

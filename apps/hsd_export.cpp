@@ -48,6 +48,7 @@ int run(const AppArgs& args) {
                   {"config_sha", sha.str()},
                   {"hsd_version", HSD_VERSION},
                   {"checkpoint", ckpt}};
+  if (std::isfinite(trainer.baseline_inv_depth())) meta.numbers["baseline_inv_depth_per_m"] = trainer.baseline_inv_depth();
   torch::jit::Module m = model::export_torchscript(trainer.net(), meta);
   make_dirs(args.out_dir);
   const std::string path = args.out_dir + "/reconstructor.pt";
@@ -56,7 +57,7 @@ int run(const AppArgs& args) {
   optics::save_height_file(args.out_dir + "/doe_height.pt", h, cfg.optics.doe_pitch_m);
   {
     torch::NoGradGuard ng;
-    optics::write_psf_atlas(args.out_dir + "/psf_atlas.png", trainer.psf().compute(h).psf.cpu(),
+    optics::write_psf_atlas(args.out_dir + "/psf_atlas.png", trainer.psf_stack().cpu(),
                             trainer.psf().spec().wavelengths_m, trainer.psf().spec().depths_m);
   }
   write_resolved_config(cfg, args.out_dir);

@@ -9,6 +9,7 @@
 #include "common/atomic_file.h"
 #include "common/log.h"
 #include "common/tensor_io.h"
+#include "optics/depth_distinctness.h"
 #include "optics/doe.h"
 #include "optics/psf.h"
 #include "optics/psf_atlas.h"
@@ -69,6 +70,17 @@ int run(const AppArgs& args) {
   print_energy_table(energy, spec);
   const auto report = optics::check_sampling(spec, energy, cfg.optics.energy_warn_threshold);
   for (const auto& w : report.warnings) log::warn(w);
+  if (spec.depths_m.size() >= 2) {
+    const auto dd = optics::depth_distinctness(out.psf);
+    std::string line = "depth cue per band: smallest total-variation distance between two depths' PSFs (0 = same PSF, 1 = disjoint)";
+    char buf[128];
+    for (size_t l = 0; l < dd.per_band.size(); ++l) {
+      std::snprintf(buf, sizeof buf, "\n  %4.0f nm  %.3f  (%.3g m vs %.3g m)", spec.wavelengths_m[l] * 1e9, dd.per_band[l],
+                    spec.depths_m[size_t(dd.pair[l].first)], spec.depths_m[size_t(dd.pair[l].second)]);
+      line += buf;
+    }
+    log::info(line);
+  }
   log::info("largest phase step of the sampled chirps: " + std::to_string(report.max_phase_step_rad.max().item<double>()) +
             " rad per DOE sample (limit pi)");
 

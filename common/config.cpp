@@ -110,6 +110,9 @@ OpticsConfig parse_optics(const JsonReader& r) {
            "expected \"sinc_cross\", \"sinc\" or \"midpoint\", got \"" + o.pupil_cell_integration + "\"");
   o.spectral_samples = r.get_int("spectral_samples", o.spectral_samples);
   if (o.spectral_samples < 1 || o.spectral_samples > 9) r.fail("spectral_samples", "must be in [1, 9]");
+  o.psf_source = r.get_string("psf_source", o.psf_source);
+  if (o.psf_source != "simulator" && o.psf_source != "all_in_focus")
+    r.fail("psf_source", "expected \"simulator\" or \"all_in_focus\", got \"" + o.psf_source + "\"");
   o.energy_warn_threshold = r.get_number("energy_warn_threshold", o.energy_warn_threshold);
   if (!(o.energy_warn_threshold >= 0.0 && o.energy_warn_threshold <= 1.0))
     r.fail("energy_warn_threshold", "must be in [0, 1]");
@@ -299,6 +302,8 @@ Config parse_config(const Json& resolved) {
     M.norm = m->get_string("norm", M.norm);
     if (M.norm != "batch" && M.norm != "group" && M.norm != "none")
       m->fail("norm", "expected \"batch\", \"group\" or \"none\", got \"" + M.norm + "\"");
+    M.depth_margin = m->get_number("depth_margin", M.depth_margin);
+    if (!(M.depth_margin >= 0.0 && M.depth_margin <= 0.5)) m->fail("depth_margin", "must be in [0, 0.5]");
   }
   if (auto t = r.optional_child("train")) {
     auto& T = c.train;

@@ -57,6 +57,11 @@ struct OpticsConfig {
   // model: 4.8% worst PSF error on its 10-nm bands; 2 nodes: 1.2%, hsd_bench accuracy).
   int64_t spectral_samples = 2;
   double energy_warn_threshold = 0.5;  // warn when energy_in_window of a (λ, z) falls below this
+  // Where the imaging PSFs come from: "simulator" (the DOE's, optics/psf.h) or
+  // "all_in_focus" (the control with no optical cue, optics/all_in_focus.h: one
+  // diffraction-limited in-focus PSF for every band and depth; the DOE is unused
+  // and the network alone is trained).
+  std::string psf_source = "simulator";
   DoeConfig doe;
 
   std::vector<double> wavelengths_m() const;
@@ -105,6 +110,10 @@ struct ModelConfig {
   int64_t base_width = 32;      // channels of the first U-Net level, doubled per level
   int64_t levels = 4;           // poolings (inputs are padded to multiples of 2^levels)
   std::string norm = "batch";   // "batch" | "group" | "none"
+  // The depth head's sigmoid spans the depth range widened by this fraction of
+  // its inverse-depth span at each end, so the nearest and farthest targets do
+  // not ask for a saturated sigmoid (0 = exactly the range, the paper's form).
+  double depth_margin = 0.1;
 };
 
 // Joint training of DOE and network (train/trainer.h).

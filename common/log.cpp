@@ -22,15 +22,21 @@ void set_quiet(bool quiet) { g_quiet = quiet; }
 
 Progress::Progress(std::string label, long total)
     : label_(std::move(label)), total_(total > 0 ? total : 1),
-      start_(std::chrono::steady_clock::now()), last_(start_) {}
+      start_(std::chrono::steady_clock::now()), last_(start_), tty_(isatty(fileno(stderr)) != 0) {}
 
 void Progress::step(long n) {
   done_ += n;
+  if (done_ >= total_) return;  // the end: finish() prints
   auto now = std::chrono::steady_clock::now();
-  if (done_ < total_ && std::chrono::duration<double>(now - last_).count() >= 0.5) {  // the end: finish() prints
-    last_ = now;
-    print(false);
+  if (tty_) {  // a live bar, redrawn at most every 0.5 s
+    if (std::chrono::duration<double>(now - last_).count() < 0.5) return;
+  } else {  // a log file: one line each time another kNonTtyPercent % is done
+    const long bucket = long(100.0 * double(done_) / double(total_)) / kNonTtyPercent;
+    if (bucket <= last_bucket_) return;
+    last_bucket_ = bucket;
   }
+  last_ = now;
+  print(false);
 }
 
 void Progress::finish() {
@@ -49,7 +55,7 @@ void Progress::print(bool final_line) {
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
   std::string bar(filled, '#');
   bar += std::string(width - filled, '.');
-  const bool tty = isatty(fileno(stderr));
+  const bool tty = tty_;
   std::string eta;
   if (!final_line && done_ > start_done_ && done_ < total_) {
     char buf[48];

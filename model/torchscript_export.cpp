@@ -54,6 +54,7 @@ torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
   m.register_attribute("depth_range_m", c10::TensorType::get(),
                        torch::tensor(std::vector<double>{opt.depth_min_m, opt.depth_max_m}, torch::kFloat64));
   for (const auto& [k, v] : meta.strings) m.register_attribute(k, c10::StringType::get(), v);
+  for (const auto& [k, v] : meta.numbers) m.register_attribute(k, c10::FloatType::get(), v);
 
   const int64_t L = opt.levels, mult = int64_t(1) << L;
   std::ostringstream o;

@@ -20,6 +20,7 @@ namespace hsd::model {
 struct ExportMetadata {
   std::vector<double> wavelengths_m;
   std::map<std::string, std::string> strings;  // e.g. camera, doe, config_sha, hsd_version
+  std::map<std::string, double> numbers;       // e.g. baseline_inv_depth_per_m (train/baselines.h)
 };
 
 // A module loadable by torch::jit::load and Python's torch.jit.load.

@@ -89,6 +89,7 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image) {
   const double inv_far = 1.0 / opt_.depth_max_m, inv_near = 1.0 / opt_.depth_min_m;
   out.inv_depth = inv_far + d * (inv_near - inv_far);
   out.depth_m = 1.0 / out.inv_depth;
+  out.depth_unit = d;
   return out;
 }
 

@@ -33,6 +33,7 @@ struct NetOutput {
   torch::Tensor hs;          // [B, L, H, W] radiance per band
   torch::Tensor inv_depth;   // [B, 1, H, W] 1/m
   torch::Tensor depth_m;     // [B, 1, H, W] metres
+  torch::Tensor depth_unit;  // [B, 1, H, W] the depth head's sigmoid output in [0, 1] (for saturation diagnostics)
 };
 
 class HsdNetImpl : public torch::nn::Module {

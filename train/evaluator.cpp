@@ -17,6 +17,8 @@
 #include "data/preview.h"
 #include "optics/psf_atlas.h"
 #include "optics/spectrum.h"
+#include "model/spectral_upsampling.h"
+#include "train/baselines.h"
 #include "train/metrics.h"
 #include "train/plot.h"
 
@@ -48,14 +50,15 @@ EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& spli
     const model::NetOutput o = trainer.net()->forward(x);
     return std::make_pair(o.hs, o.depth_m);
   };
-  EvalResult r = evaluate(trainer.psf(), trainer.sensor(), trainer.doe().height().detach(), net, cfg, split, out_dir);
+  EvalResult r = evaluate(trainer.psf(), trainer.sensor(), trainer.doe().height().detach(), net, cfg, split, out_dir,
+                          trainer.baseline_inv_depth(), trainer.fixed_psf());
   trainer.net()->train();
   return r;
 }
 
 EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& sensor, const torch::Tensor& height_m,
                     const Reconstructor& reconstruct, const Config& cfg, const std::string& split,
-                    const std::string& out_dir) {
+                    const std::string& out_dir, double baseline_inv_depth, const optics::PsfProvider& fixed_psf) {
   const std::string root = cfg.data.root;
   const auto bands = cfg.optics.wavelengths_m();
   const double bw = cfg.optics.band_width_m();
@@ -68,6 +71,11 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
   torch::NoGradGuard no_grad;
   const torch::Tensor h = height_m.detach();
   EvalResult res;
+  const bool constant_known = std::isfinite(baseline_inv_depth) && baseline_inv_depth > 0;
+  if (!constant_known)
+    log::warn("no constant-depth baseline: the checkpoint or model does not store the training split's median inverse "
+              "depth (made by an earlier hsd); retrain, or evaluate with a checkpoint of this version");
+  const torch::Tensor up_w = model::spectral_upsampling_weights(sensor.omega.cpu());
   int cc_count = 0;
   double cc_sum = 0.0;
   log::Progress progress("evaluate", long(scenes.size()));
@@ -77,20 +85,29 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     const torch::Tensor radiance = sc.kind == data::SpectralKind::Reflectance ? sc.spectral * E.view({-1, 1, 1}) : sc.spectral;
     auto gen = at::detail::createCPUGenerator(cfg.seed + 7919 * (i + 1));
     const optics::SensorImage img = optics::simulate_sensor(psf, sensor, h, radiance.unsqueeze(0),
-                                                            sc.depth_m.unsqueeze(0), gen);
+                                                            sc.depth_m.unsqueeze(0), gen, optics::LeaveOut(), fixed_psf);
     const auto out = reconstruct(img.image);
     const torch::Tensor hs = out.first[0].cpu(), dp = out.second[0].cpu();
     SceneMetrics m;
     m.file = ls.file;
     m.data_range = std::max(1e-12, radiance.max().item<double>());
-    m.hs_psnr_db = psnr_db(hs, radiance, m.data_range);
-    m.hs_ssim = ssim(hs, radiance, m.data_range);
+    const torch::Tensor& valid = sc.mask;
+    m.hs_psnr_db = psnr_db(hs, radiance, m.data_range, valid);
+    m.hs_ssim = ssim(hs, radiance, m.data_range, valid);
     const torch::Tensor Yt = luminance(radiance, ybar), Yp = luminance(hs, ybar);
     const double yr = std::max(1e-12, Yt.max().item<double>());
-    m.lum_psnr_db = psnr_db(Yp, Yt, yr);
-    m.lum_ssim = ssim(Yp, Yt, yr);
-    const DepthErrors de = depth_errors(dp, sc.depth_m, sc.mask);
+    m.lum_psnr_db = psnr_db(Yp, Yt, yr, valid);
+    m.lum_ssim = ssim(Yp, Yt, yr, valid);
+    const DepthErrors de = depth_errors(dp, sc.depth_m, valid);
     m.depth_rmse_m = de.rmse_m, m.depth_mae_m = de.mae_m;
+    // The baselines on the same pixels.
+    const torch::Tensor up = model::spectral_upsample(up_w, img.image.cpu())[0];
+    m.baseline_upsampling_hs_psnr_db = psnr_db(up, radiance, m.data_range, valid);
+    m.baseline_upsampling_hs_ssim = ssim(up, radiance, m.data_range, valid);
+    if (constant_known) {
+      const DepthErrors dc = depth_errors(constant_depth_map(sc.depth_m, baseline_inv_depth), sc.depth_m, valid);
+      m.baseline_constant_depth_rmse_m = dc.rmse_m, m.baseline_constant_depth_mae_m = dc.mae_m;
+    }
     const std::string stem = out_dir + "/" + std::filesystem::path(ls.file).stem().string();
     // Pictures: truth | reconstruction | |error| x4 | true depth | predicted depth.
     const torch::Tensor truth_rgb = data::spectral_to_linear_srgb(radiance, bands, bw);
@@ -154,39 +171,73 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
   for (const auto& m : res.scenes) {
     a.hs_psnr_db += m.hs_psnr_db / n, a.hs_ssim += m.hs_ssim / n, a.lum_psnr_db += m.lum_psnr_db / n;
     a.lum_ssim += m.lum_ssim / n, a.depth_rmse_m += m.depth_rmse_m / n, a.depth_mae_m += m.depth_mae_m / n;
+    a.baseline_upsampling_hs_psnr_db += m.baseline_upsampling_hs_psnr_db / n;
+    a.baseline_upsampling_hs_ssim += m.baseline_upsampling_hs_ssim / n;
+  }
+  if (constant_known) {
+    a.baseline_constant_depth_rmse_m = a.baseline_constant_depth_mae_m = 0.0;
+    for (const auto& m : res.scenes)
+      a.baseline_constant_depth_rmse_m += m.baseline_constant_depth_rmse_m / n,
+          a.baseline_constant_depth_mae_m += m.baseline_constant_depth_mae_m / n;
   }
   a.colorchecker_rmse = cc_count > 0 ? cc_sum / double(cc_count) : -1.0;
-  optics::write_psf_atlas(out_dir + "/psf_atlas.png", psf.compute(h).psf.cpu(), psf.spec().wavelengths_m,
-                          psf.spec().depths_m);
+  {
+    std::vector<int64_t> layers(psf.spec().depths_m.size()), bands(psf.spec().wavelengths_m.size());
+    for (size_t i = 0; i < layers.size(); ++i) layers[i] = int64_t(i);
+    for (size_t i = 0; i < bands.size(); ++i) bands[i] = int64_t(i);
+    const torch::Tensor atlas = fixed_psf ? fixed_psf(h, layers, bands) : psf.compute(h).psf;
+    optics::write_psf_atlas(out_dir + "/psf_atlas.png", atlas.cpu(), psf.spec().wavelengths_m, psf.spec().depths_m);
+  }
   // metrics.json (CONTRACT.md keys) and report.md.
   auto row = [](const SceneMetrics& m) {
     Json j{{"file", m.file}, {"hs_psnr_db", m.hs_psnr_db}, {"hs_ssim", m.hs_ssim}, {"lum_psnr_db", m.lum_psnr_db},
            {"lum_ssim", m.lum_ssim}, {"depth_rmse_m", m.depth_rmse_m}, {"depth_mae_m", m.depth_mae_m}};
     if (m.data_range > 0) j["psnr_data_range"] = m.data_range;
     if (m.colorchecker_rmse >= 0) j["colorchecker_reflectance_rmse"] = m.colorchecker_rmse;
+    j["baseline_upsampling_hs_psnr_db"] = m.baseline_upsampling_hs_psnr_db;
+    j["baseline_upsampling_hs_ssim"] = m.baseline_upsampling_hs_ssim;
+    if (std::isfinite(m.baseline_constant_depth_rmse_m)) {
+      j["baseline_constant_depth_rmse_m"] = m.baseline_constant_depth_rmse_m;
+      j["baseline_constant_depth_mae_m"] = m.baseline_constant_depth_mae_m;
+    }
     return j;
   };
   Json j = row(a);
   j.erase("file");
   j["split"] = split;
+  if (constant_known) j["baseline_constant_depth_m"] = 1.0 / baseline_inv_depth;
   j["scenes"] = Json::array();
   for (const auto& m : res.scenes) j["scenes"].push_back(row(m));
   j["notes"] = "PSNR and SSIM data range: each scene's largest true radiance (luminance: its largest true Y); "
                "scene radiance = reflectance x " + cfg.sensor.illuminant + " (band means, max 1); SSIM per Wang et al. 2004 "
-               "(11x11 Gaussian window, sigma 1.5) per band, averaged; depth errors over valid pixels";
+               "(11x11 Gaussian window, sigma 1.5) per band, averaged; every metric over the scene's valid pixels; "
+               "baselines on the same pixels: the spectral-upsampling cube of the same sensor image (no network) and "
+               "one constant depth (the training split's median inverse depth)";
   write_text_file(out_dir + "/metrics.json", j.dump(2) + "\n");
   std::string md = "# Evaluation (" + split + " split)\n\n" + j["notes"].get<std::string>() + ".\n\n" +
                    "| scene | HS PSNR [dB] | HS SSIM | lum PSNR [dB] | lum SSIM | depth RMSE [m] | depth MAE [m] | ColorChecker RMSE |\n"
                    "|---|---|---|---|---|---|---|---|\n";
-  char buf[320];
+  char buf[400];
   std::vector<SceneMetrics> all = res.scenes;
   all.push_back(a);
+  auto depth_cell = [](double model, double base) {
+    char c[64];
+    if (std::isfinite(base)) std::snprintf(c, sizeof c, "%.4f (%.4f)", model, base);
+    else std::snprintf(c, sizeof c, "%.4f", model);
+    return std::string(c);
+  };
   for (const auto& m : all) {
-    std::snprintf(buf, sizeof buf, "| %s | %.2f | %.4f | %.2f | %.4f | %.4f | %.4f | %s |\n", m.file.c_str(), m.hs_psnr_db,
-                  m.hs_ssim, m.lum_psnr_db, m.lum_ssim, m.depth_rmse_m, m.depth_mae_m,
+    std::snprintf(buf, sizeof buf, "| %s | %.2f (%.2f) | %.4f (%.4f) | %.2f | %.4f | %s | %s | %s |\n",
+                  m.file == "mean" ? "**mean**" : m.file.c_str(), m.hs_psnr_db, m.baseline_upsampling_hs_psnr_db,
+                  m.hs_ssim, m.baseline_upsampling_hs_ssim, m.lum_psnr_db, m.lum_ssim,
+                  depth_cell(m.depth_rmse_m, m.baseline_constant_depth_rmse_m).c_str(),
+                  depth_cell(m.depth_mae_m, m.baseline_constant_depth_mae_m).c_str(),
                   m.colorchecker_rmse >= 0 ? c10::str(m.colorchecker_rmse).c_str() : "");
     md += buf;
   }
+  md += "\nIn brackets: the baseline on the same pixels (HS: the upsampling cube of the sensor image alone; depth: ";
+  md += constant_known ? "the constant " + c10::str(1.0 / baseline_inv_depth) + " m" : std::string("not known");
+  md += "). A model that does not beat its baseline has learned nothing from the image.\n";
   md += "\nPictures: `<scene>_compare.png` (truth | reconstruction | |error| x4 | true depth | predicted depth), "
         "`<scene>_spectra.png`, `colorchecker_spectra.png`, `psf_atlas.png`.\n";
   write_text_file(out_dir + "/report.md", md);

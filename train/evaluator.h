@@ -6,6 +6,7 @@
 // spectra at chosen points), the ColorChecker's 24-patch spectral plot, the
 // DOE's PSF atlas, metrics.json and report.md.
 #pragma once
+#include <cmath>
 #include <functional>
 #include <string>
 #include <utility>
@@ -21,6 +22,9 @@ struct SceneMetrics {
   double data_range = 0;  // PSNR/SSIM range: the scene's largest true radiance
   double hs_psnr_db = 0, hs_ssim = 0, lum_psnr_db = 0, lum_ssim = 0, depth_rmse_m = 0, depth_mae_m = 0;
   double colorchecker_rmse = -1;  // < 0: not a ColorChecker scene
+  // Baselines on the same pixels (train/baselines.h); NaN when unknown.
+  double baseline_constant_depth_rmse_m = std::nan(""), baseline_constant_depth_mae_m = std::nan("");
+  double baseline_upsampling_hs_psnr_db = 0, baseline_upsampling_hs_ssim = 0;
 };
 
 struct EvalResult {
@@ -31,11 +35,16 @@ struct EvalResult {
 // A reconstructor: sensor image [B, 3, H, W] -> (cube [B, L, H, W], depth [B, 1, H, W] metres).
 using Reconstructor = std::function<std::pair<torch::Tensor, torch::Tensor>(const torch::Tensor&)>;
 
-// The optics (PSF simulator, sensor model, DOE height [N, N]) image each scene;
-// `reconstruct` recovers it.
+// The optics (PSF simulator, sensor model, DOE height [N, N]; or a fixed PSF
+// stack through `fixed_psf`, the all-in-focus control) image each scene;
+// `reconstruct` recovers it. Every metric is over the scene's valid pixels.
+// Beside the model, the baselines on the same pixels: the spectral-upsampling
+// cube of the same sensor image, and the constant depth 1 / baseline_inv_depth
+// [1/m] (NaN: not reported, with a warning).
 EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& sensor, const torch::Tensor& height_m,
                     const Reconstructor& reconstruct, const Config& cfg, const std::string& split,
-                    const std::string& out_dir);
+                    const std::string& out_dir, double baseline_inv_depth = std::nan(""),
+                    const optics::PsfProvider& fixed_psf = nullptr);
 
 // The same with a trainer's optics, DOE and network (load a checkpoint first).
 EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& split, const std::string& out_dir);

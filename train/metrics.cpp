@@ -10,15 +10,33 @@ namespace hsd::train {
 
 namespace F = torch::nn::functional;
 
-double psnr_db(const torch::Tensor& a, const torch::Tensor& b, double data_range) {
+namespace {
+// The valid-pixel weights [1, H, W] of a mask (1 = valid), or undefined for all pixels.
+torch::Tensor valid(const torch::Tensor& mask, const torch::Tensor& like) {
+  if (!mask.defined()) return {};
+  if (mask.dim() != 3 || mask.size(0) != 1 || mask.size(1) != like.size(-2) || mask.size(2) != like.size(-1))
+    throw InputError("metrics: the mask must be [1, H, W] of the images' size");
+  return (mask > 0.5).to(torch::kFloat64);
+}
+// Mean of x [C, H, W] over the valid pixels of m [1, H, W] (all when m is undefined).
+double masked_mean(const torch::Tensor& x, const torch::Tensor& m) {
+  if (!m.defined()) return x.mean().item<double>();
+  const double n = m.sum().item<double>() * double(x.size(0));
+  if (!(n > 0)) throw InputError("metrics: the mask has no valid pixel");
+  return (x * m).sum().item<double>() / n;
+}
+}  // namespace
+
+double psnr_db(const torch::Tensor& a, const torch::Tensor& b, double data_range, const torch::Tensor& mask) {
   if (a.sizes() != b.sizes()) throw InputError("PSNR: images differ in size");
   if (!(data_range > 0)) throw InputError("PSNR: data range must be > 0");
-  const double mse = (a.to(torch::kFloat64) - b.to(torch::kFloat64)).pow(2).mean().item<double>();
+  const double mse = masked_mean((a.to(torch::kFloat64) - b.to(torch::kFloat64)).pow(2), valid(mask, a));
+  if (!std::isfinite(mse)) return std::nan("");  // NaN in, NaN out: never a best score
   if (mse <= 0) return kPsnrCapDb;
   return std::min(kPsnrCapDb, 10.0 * std::log10(data_range * data_range / mse));
 }
 
-double ssim(const torch::Tensor& a, const torch::Tensor& b, double data_range) {
+double ssim(const torch::Tensor& a, const torch::Tensor& b, double data_range, const torch::Tensor& mask) {
   if (a.sizes() != b.sizes() || a.dim() != 3) throw InputError("SSIM: needs two [C, H, W] images of one size");
   const int64_t C = a.size(0), win = std::min<int64_t>({11, a.size(1), a.size(2)});
   const double sigma = 1.5;
@@ -32,7 +50,16 @@ double ssim(const torch::Tensor& a, const torch::Tensor& b, double data_range) {
   const torch::Tensor mx = filt(x), my = filt(y);
   const torch::Tensor sxx = filt(x * x) - mx * mx, syy = filt(y * y) - my * my, sxy = filt(x * y) - mx * my;
   const torch::Tensor map = ((2 * mx * my + C1) * (2 * sxy + C2)) / ((mx * mx + my * my + C1) * (sxx + syy + C2));
-  return map.mean().item<double>();
+  // The map covers the window positions fully inside the image; a position
+  // counts when every pixel of its window is valid (an invalid pixel never
+  // enters a counted window).
+  torch::Tensor m = valid(mask, a);
+  if (m.defined()) {
+    const torch::Tensor ones = torch::ones({1, 1, win, win}, torch::kFloat64);
+    m = (F::conv2d(m.unsqueeze(0), ones)[0] > double(win * win) - 0.5).to(torch::kFloat64);
+    if (!(m.sum().item<double>() > 0)) return std::nan("");  // no fully valid window
+  }
+  return masked_mean(map, m);
 }
 
 torch::Tensor luminance(const torch::Tensor& cube, const torch::Tensor& weights) {

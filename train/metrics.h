@@ -7,7 +7,9 @@
 //     the image, per channel, averaged over channels.
 //   Luminance Y = Σ_λ ȳ(λ) E(λ) · R(λ) / Σ_λ ȳ(λ) E(λ) of a reflectance cube (or
 //     Σ_λ ȳ(λ) S(λ) / Σ_λ ȳ(λ) of radiance).
-//   Depth RMSE and MAE in metres over valid pixels.
+//   Every metric is over the valid pixels (the scene's mask), as training sees
+//   only valid pixels.
+//   Depth RMSE and MAE in metres.
 //   ColorChecker: recovered reflectance = radiance / illuminant, averaged in
 //     each patch's box; RMSE over bands per patch, mean over the 24 patches.
 #pragma once
@@ -20,9 +22,13 @@ namespace hsd::train {
 
 constexpr double kPsnrCapDb = 100.0;
 
-// a, b [C, H, W] (any float); data_range > 0.
-double psnr_db(const torch::Tensor& a, const torch::Tensor& b, double data_range);
-double ssim(const torch::Tensor& a, const torch::Tensor& b, double data_range);
+// a, b [C, H, W] (any float); data_range > 0; mask [1, H, W] (1 = valid) or
+// undefined (every pixel). PSNR: the MSE over the valid pixels. SSIM: the mean
+// of the SSIM map over the window positions whose whole window is valid (NaN
+// when there is none).
+// NaN in either image gives NaN (never the 100-dB cap).
+double psnr_db(const torch::Tensor& a, const torch::Tensor& b, double data_range, const torch::Tensor& mask = {});
+double ssim(const torch::Tensor& a, const torch::Tensor& b, double data_range, const torch::Tensor& mask = {});
 
 // Weighted band sum: cube [L, H, W], weights [L] (normalised here to sum 1) -> [1, H, W].
 torch::Tensor luminance(const torch::Tensor& cube, const torch::Tensor& weights);

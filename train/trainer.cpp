@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
@@ -18,7 +19,9 @@
 #include "data/preview.h"
 #include "data/synthetic_dataset.h"
 #include "model/spectral_upsampling.h"
+#include "optics/all_in_focus.h"
 #include "optics/psf_atlas.h"
+#include "train/baselines.h"
 #include "train/metrics_csv.h"
 #include "train/plot.h"
 #include "train/schedule.h"
@@ -50,8 +53,13 @@ model::NetOptions net_options(const Config& cfg) {
   o.levels = cfg.model.levels;
   o.norm = cfg.model.norm;
   const auto& d = cfg.optics.depths_m;
-  o.depth_min_m = std::min(*std::min_element(d.begin(), d.end()), cfg.data.generator.depth_min_m);
-  o.depth_max_m = std::max(*std::max_element(d.begin(), d.end()), cfg.data.generator.depth_max_m);
+  const double near = std::min(*std::min_element(d.begin(), d.end()), cfg.data.generator.depth_min_m);
+  const double far = std::max(*std::max_element(d.begin(), d.end()), cfg.data.generator.depth_max_m);
+  // model.depth_margin widens the sigmoid's range in inverse depth at both ends
+  // (the far end kept at >= half its inverse depth, so it stays finite).
+  const double span = 1.0 / near - 1.0 / far, m = cfg.model.depth_margin * span;
+  o.depth_min_m = 1.0 / (1.0 / near + m);
+  o.depth_max_m = 1.0 / std::max(1.0 / far - m, 0.5 / far);
   return o;
 }
 
@@ -95,12 +103,18 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
     torch::manual_seed(int64_t(cfg.seed));
     const torch::Tensor w = model::spectral_upsampling_weights(sensor_.omega.cpu());
     net_ = model::HsdNet(net_options(cfg), w);
+    upsampling_w_ = w.to(torch::kFloat32).to(device_);
   }
+  if (cfg.optics.psf_source == "all_in_focus") {
+    fixed_psf_ = optics::fixed_psf_provider(optics::all_in_focus_psf(cfg.optics, material_, device_));
+    if (!cfg.train.freeze_doe) log::info("optics.psf_source = \"all_in_focus\": the control; the DOE is not used and only the network is trained");
+  }
+  doe_trained_ = !cfg.train.freeze_doe && !fixed_psf_;
   net_->to(device_);
   weights_ = {cfg.train.loss_alpha, cfg.train.loss_beta, cfg.train.loss_gamma};
   std::vector<torch::optim::OptimizerParamGroup> groups;
   groups.emplace_back(net_->parameters(), std::make_unique<torch::optim::AdamOptions>(cfg.train.lr_net));
-  if (cfg.train.freeze_doe) {
+  if (!doe_trained_) {
     doe_.parameter().set_requires_grad(false);
   } else {
     groups.emplace_back(std::vector<torch::Tensor>{doe_.parameter()},
@@ -111,7 +125,7 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
     rank_ = group_->rank(), world_ = group_->world_size();
     check_global_batch(cfg, world_);
     if (cfg.distributed.sync_batch_norm) net_->set_replica_group(group_);
-    if (cfg.distributed.split_psf) shared_psf_ = make_shared_psf_provider(*psf_, group_);
+    if (cfg.distributed.split_psf && !fixed_psf_) shared_psf_ = make_shared_psf_provider(*psf_, group_);
     group_->broadcast_(replicated_state(), "the initial network and DOE");
   }
 }
@@ -124,7 +138,7 @@ void check_global_batch(const Config& cfg, int world_size) {
 
 std::vector<torch::Tensor> Trainer::trained_parameters() const {
   std::vector<torch::Tensor> p = net_->parameters();
-  if (!cfg_.train.freeze_doe) p.push_back(doe_.parameter());
+  if (doe_trained_) p.push_back(doe_.parameter());
   return p;
 }
 
@@ -181,6 +195,7 @@ void Trainer::attach_data() {
   const auto bands = cfg_.optics.wavelengths_m();
   const double bw = cfg_.optics.band_width_m();
   train_scenes_ = data::load_split(root, "train", bands, bw, cfg_.data.loader_threads);
+  baseline_inv_depth_ = median_inverse_depth(train_scenes_);
   const data::Manifest m = data::read_manifest(root);
   bank_ = std::make_unique<data::IlluminantBank>(cfg_.data.illuminants, bands, bw);
   sampler_ = std::make_unique<data::PatchSampler>(train_scenes_, cfg_.data.patch_size_px);
@@ -200,7 +215,18 @@ void Trainer::attach_data() {
   val_ = stack(patches, device_);
   log::info("data: " + std::to_string(train_scenes_.size()) + " train scenes (" + std::to_string(sampler_->candidates()) +
             " valid windows), " + std::to_string(patches.size()) + " validation patches of " +
-            std::to_string(cfg_.data.patch_size_px) + " px");
+            std::to_string(cfg_.data.patch_size_px) + " px; constant-depth baseline " +
+            fmt("%.3f m", 1.0 / baseline_inv_depth_) + " (the train split's median inverse depth)");
+}
+
+torch::Tensor Trainer::psf_stack() const {
+  torch::NoGradGuard no_grad;
+  const torch::Tensor h = doe_.height().detach();
+  if (!fixed_psf_) return psf_->compute(h).psf;
+  std::vector<int64_t> layers(psf_->spec().depths_m.size()), bands(psf_->spec().wavelengths_m.size());
+  for (size_t i = 0; i < layers.size(); ++i) layers[i] = int64_t(i);
+  for (size_t i = 0; i < bands.size(); ++i) bands[i] = int64_t(i);
+  return fixed_psf_(h, layers, bands);
 }
 
 Batch Trainer::train_batch(int64_t step) const {
@@ -221,7 +247,7 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   const double f = lr_factor(step, std::max<int64_t>(T.steps, 1), T.warmup_steps, T.decay, T.min_lr_ratio);
   StepStats st;
   st.lr_net = T.lr_net * f;
-  st.lr_doe = T.freeze_doe ? 0.0 : T.lr_doe_m * f;
+  st.lr_doe = doe_trained_ ? T.lr_doe_m * f : 0.0;
   auto& groups = opt_->param_groups();
   static_cast<torch::optim::AdamOptions&>(groups[0].options()).lr(st.lr_net);
   if (groups.size() > 1) static_cast<torch::optim::AdamOptions&>(groups[1].options()).lr(st.lr_doe);
@@ -230,7 +256,8 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   const auto gens = image_generators(mix(cfg_.seed ^ 0xA5A5A5A5ull, uint64_t(step)), batch.first_index, batch.radiance.size(0));
   const torch::Tensor h = doe_.height();
   const optics::SensorImage img =
-      optics::simulate_sensor(*psf_, sensor_, h, batch.radiance, batch.depth_m, gens, optics::LeaveOut(), shared_psf_);
+      optics::simulate_sensor(*psf_, sensor_, h, batch.radiance, batch.depth_m, gens, optics::LeaveOut(),
+                              fixed_psf_ ? fixed_psf_ : shared_psf_);
   const model::NetOutput out = net_->forward(img.image);
   const LossTerms L = reconstruction_loss(out.hs, batch.radiance, out.inv_depth, 1.0 / batch.depth_m, weights_);
   // The global batch's loss terms (the mean of the ranks' equal slices): what
@@ -248,7 +275,7 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   if (group_) group_->average_gradients_(trained_parameters(), "the gradients of step " + std::to_string(step));
   std::vector<std::pair<std::string, torch::Tensor>> named;
   for (const auto& p : net_->named_parameters()) named.emplace_back("network parameter " + p.key(), p.value());
-  if (!T.freeze_doe) named.emplace_back("the DOE height map", doe_.parameter());
+  if (doe_trained_) named.emplace_back("the DOE height map", doe_.parameter());
   check_grads(named, step);
   // Clipping per group: the network's gradient norm, and the DOE's relative to
   // its own scale (its gradient is in loss per metre, ~1e6 times larger).
@@ -271,14 +298,21 @@ ValStats Trainer::validate() {
   // This rank's share [lo, hi) of the validation patches (all of them alone).
   const int64_t n_all = val_.radiance.size(0), B = cfg_.train.batch_size;
   const int64_t lo = n_all * rank_ / world_, hi = n_all * (rank_ + 1) / world_;
-  double loss = 0, se = 0, abs_z = 0, se_z = 0, count = 0, px = 0;
+  double loss = 0, se = 0, abs_z = 0, se_z = 0, count = 0, px = 0, se_up = 0, abs_c = 0, se_c = 0, sat = 0;
+  const double c_inv = std::isfinite(baseline_inv_depth_) ? baseline_inv_depth_ : 1.0;
   const double peak = val_.radiance.max().item<double>();
   for (int64_t i = lo; i < hi; i += B) {
     const int64_t b = std::min(B, hi - i);
     const torch::Tensor I = val_.radiance.narrow(0, i, b), Z = val_.depth_m.narrow(0, i, b);
     const optics::SensorImage img =
-        optics::simulate_sensor(*psf_, sensor_, h, I, Z, image_generators(mix(cfg_.seed, kValSeed + 1), i, b));
+        optics::simulate_sensor(*psf_, sensor_, h, I, Z, image_generators(mix(cfg_.seed, kValSeed + 1), i, b),
+                                optics::LeaveOut(), fixed_psf_);
     const model::NetOutput out = net_->forward(img.image);
+    se_up += (model::spectral_upsample(upsampling_w_, img.image) - I).pow(2).sum().item<double>();
+    const torch::Tensor Zc = constant_depth_map(Z, c_inv);
+    abs_c += (Zc - Z).abs().sum().item<double>();
+    se_c += (Zc - Z).pow(2).sum().item<double>();
+    sat += ((out.depth_unit < 0.02) | (out.depth_unit > 0.98)).sum().item<double>();
     loss += reconstruction_loss(out.hs, I, out.inv_depth, 1.0 / Z, weights_).total.item<double>() * double(b);
     se += (out.hs - I).pow(2).sum().item<double>();
     count += double(I.numel());
@@ -288,8 +322,9 @@ ValStats Trainer::validate() {
   }
   net_->train();
   if (group_) {
-    const auto s = group_->sum({loss, se, count, abs_z, se_z, px}, "validation sums");
+    const auto s = group_->sum({loss, se, count, abs_z, se_z, px, se_up, abs_c, se_c, sat}, "validation sums");
     loss = s[0], se = s[1], count = s[2], abs_z = s[3], se_z = s[4], px = s[5];
+    se_up = s[6], abs_c = s[7], se_c = s[8], sat = s[9];
   }
   ValStats v;
   v.loss = loss / double(n_all);
@@ -297,6 +332,10 @@ ValStats Trainer::validate() {
   v.hs_psnr_db = 10.0 * std::log10(peak * peak / std::max(se / count, 1e-30));
   v.depth_rmse_m = std::sqrt(se_z / px);
   v.depth_mae_m = abs_z / px;
+  v.baseline_hs_psnr_db = 10.0 * std::log10(peak * peak / std::max(se_up / count, 1e-30));
+  v.baseline_depth_rmse_m = std::sqrt(se_c / px);
+  v.baseline_depth_mae_m = abs_c / px;
+  v.depth_saturated = sat / px;
   return v;
 }
 
@@ -306,6 +345,7 @@ void Trainer::save_checkpoint(const std::string& path, int64_t next_step) const 
   d["doe.raw"] = doe_.parameter().detach().cpu();
   d["height_map_m"] = doe_.height().detach().to(torch::kFloat32).cpu();
   d["doe_pitch_m"] = torch::tensor(doe_.pitch_m(), torch::kFloat64);
+  if (std::isfinite(baseline_inv_depth_)) d["baseline.inv_depth_per_m"] = torch::tensor(baseline_inv_depth_, torch::kFloat64);
   for (const auto& p : net_->named_parameters()) d["net." + p.key()] = p.value().detach().cpu();
   for (const auto& b : net_->named_buffers()) d["net." + b.key()] = b.value().detach().cpu();
   const auto& groups = opt_->param_groups();
@@ -351,6 +391,7 @@ int64_t Trainer::load_checkpoint(const std::string& path) {
       if (s->exp_avg().sizes() != p.sizes()) input_error(path, k + "exp_avg does not match its parameter");
       state[c10::guts::to_string(p.unsafeGetTensorImpl())] = std::move(s);
     }
+  if (d.count("baseline.inv_depth_per_m")) baseline_inv_depth_ = d.at("baseline.inv_depth_per_m").item<double>();
   const int64_t next = dict_get(d, "step", path).item<int64_t>();
   if (group_) {  // every rank read a checkpoint of the same step, then all take rank 0's values
     const auto all = group_->gather(double(next), "the resumed step");
@@ -370,7 +411,8 @@ void Trainer::write_val_pictures(const std::string& dir, int64_t step) {
   const int64_t n = std::min<int64_t>(2, val_.radiance.size(0));
   const torch::Tensor I = val_.radiance.narrow(0, 0, n), Z = val_.depth_m.narrow(0, 0, n);
   const optics::SensorImage img =
-      optics::simulate_sensor(*psf_, sensor_, doe_.height(), I, Z, image_generators(mix(cfg_.seed, kValSeed + 1), 0, n));
+      optics::simulate_sensor(*psf_, sensor_, doe_.height(), I, Z, image_generators(mix(cfg_.seed, kValSeed + 1), 0, n),
+                              optics::LeaveOut(), fixed_psf_);
   const model::NetOutput out = net_->forward(img.image);
   net_->train();
   const auto bands = cfg_.optics.wavelengths_m();
@@ -398,7 +440,7 @@ void Trainer::write_val_pictures(const std::string& dir, int64_t step) {
   // One picture per validation: a row per patch, [truth | sensor | reconstruction |
   // |error| | true depth | predicted depth], enlarged 3x; the pieces are removed.
   write_montage(parts, 6, 3.0, std::string(stem) + "reconstructions.png");
-  optics::write_psf_atlas(std::string(stem) + "psf_atlas.png", psf_->compute(doe_.height().detach()).psf.cpu(),
+  optics::write_psf_atlas(std::string(stem) + "psf_atlas.png", psf_stack().cpu(),
                           psf_->spec().wavelengths_m, psf_->spec().depths_m);
 }
 
@@ -413,38 +455,82 @@ void Trainer::run(const std::string& out_dir, bool resume) {
   }
   int64_t start = 0;
   // Rows of metrics.csv: kept in memory, the file rewritten atomically.
-  const std::string header =
-      "step,wall_s,train_loss,val_loss,train_hs_l1,train_depth_l1,lr_net,lr_doe_m,val_hs_psnr_db,val_depth_rmse_m,val_depth_mae_m";
+  const std::vector<std::string> columns{"step", "wall_s", "train_loss", "val_loss", "train_hs_l1", "train_depth_l1",
+                                         "lr_net", "lr_doe_m", "val_hs_psnr_db", "val_depth_rmse_m", "val_depth_mae_m",
+                                         "val_baseline_hs_psnr_db", "val_baseline_depth_rmse_m", "val_depth_saturated"};
+  auto col = [&](const char* name) {
+    return size_t(std::find(columns.begin(), columns.end(), std::string(name)) - columns.begin());
+  };
   std::vector<std::vector<std::string>> rows;  // cells; empty where not measured
   double wall_offset = 0.0;
   if (resume) {
     if (!std::filesystem::exists(ckpt)) input_error(ckpt, "no checkpoint to resume from (--resume)");
     start = load_checkpoint(ckpt);
     if (writer)
-      for (const auto& c : read_csv_rows(csv))
-      if (c.size() > 1 && std::stoll(c[0]) <= start) {  // rows up to the checkpoint's step were written before it
+      for (auto c : read_csv_rows(csv)) {
+        // Rows up to the checkpoint's step were written before it; a row of an
+        // earlier hsd (fewer columns) is padded with empty cells.
+        char* end = nullptr;
+        const long long row_step = c.size() > 1 ? std::strtoll(c[0].c_str(), &end, 10) : -1;
+        if (c.size() < 2 || end == c[0].c_str() || *end != '\0' || c.size() > columns.size())
+          input_error(csv, "a row that is not one of hsd_train's (\"" + (c.empty() ? std::string() : c[0]) + "...\"); remove the file to resume without it");
+        if (row_step > start) continue;
+        c.resize(columns.size());
         rows.push_back(c);
-        wall_offset = std::stod(c[1]);
+        wall_offset = std::atof(c[1].c_str());
       }
     log::info("resuming from " + ckpt + " at step " + std::to_string(start));
   }
+  auto num = [](const std::string& c) { return c.empty() ? NAN : std::atof(c.c_str()); };
   auto write_outputs = [&] {
     if (!writer) return;
-    std::string text = header + "\n";
-    std::vector<double> xs, tr, vx, vl, psnr;
+    std::string text;
+    for (size_t i = 0; i < columns.size(); ++i) text += (i ? "," : "") + columns[i];
+    text += "\n";
+    std::vector<double> xs, tr, vx, vl, psnr, base_psnr, rmse, base_rmse;
     for (const auto& c : rows) {
       for (size_t i = 0; i < c.size(); ++i) text += (i ? "," : "") + c[i];
       text += "\n";
-      xs.push_back(std::stod(c[0]));
-      tr.push_back(c[2].empty() ? NAN : std::stod(c[2]));
-      if (!c[3].empty()) vx.push_back(std::stod(c[0])), vl.push_back(std::stod(c[3])), psnr.push_back(std::stod(c[8]));
+      xs.push_back(num(c[col("step")]));
+      tr.push_back(num(c[col("train_loss")]));
+      if (c[col("val_loss")].empty()) continue;
+      vx.push_back(num(c[col("step")]));
+      vl.push_back(num(c[col("val_loss")]));
+      psnr.push_back(num(c[col("val_hs_psnr_db")]));
+      base_psnr.push_back(num(c[col("val_baseline_hs_psnr_db")]));
+      rmse.push_back(num(c[col("val_depth_rmse_m")]));
+      base_rmse.push_back(num(c[col("val_baseline_depth_rmse_m")]));
     }
     write_text_file(csv, text);
     write_line_plot(out_dir + "/curves.png", "loss (L1 cube + weighted depth terms)", "step",
                     {{"train", xs, tr, {200, 120, 30}}, {"validation", vx, vl, {30, 30, 200}}}, true);
-    if (!vx.empty())
-      write_line_plot(out_dir + "/val_psnr.png", "validation hyperspectral PSNR [dB]", "step",
-                      {{"PSNR", vx, psnr, {30, 140, 30}}}, false);
+    if (vx.empty()) return;
+    // The baselines as lines beside the model's curves: a curve that does not
+    // leave its baseline has learned nothing.
+    write_line_plot(out_dir + "/val_psnr.png", "validation hyperspectral PSNR [dB]", "step",
+                    {{"model", vx, psnr, {30, 140, 30}}, {"upsampling alone (baseline)", vx, base_psnr, {150, 150, 150}}},
+                    false);
+    write_line_plot(out_dir + "/val_depth.png", "validation depth RMSE [m]", "step",
+                    {{"model", vx, rmse, {200, 60, 30}}, {"constant depth (baseline)", vx, base_rmse, {150, 150, 150}}},
+                    false);
+  };
+  auto val_cells = [&](std::vector<std::string>& row, const ValStats& v) {
+    row[col("val_loss")] = fmt("%.6g", v.loss);
+    row[col("val_hs_psnr_db")] = fmt("%.4f", v.hs_psnr_db);
+    row[col("val_depth_rmse_m")] = fmt("%.5f", v.depth_rmse_m);
+    row[col("val_depth_mae_m")] = fmt("%.5f", v.depth_mae_m);
+    row[col("val_baseline_hs_psnr_db")] = fmt("%.4f", v.baseline_hs_psnr_db);
+    row[col("val_baseline_depth_rmse_m")] = fmt("%.5f", v.baseline_depth_rmse_m);
+    row[col("val_depth_saturated")] = fmt("%.4f", v.depth_saturated);
+  };
+  auto log_val = [&](int64_t step, const ValStats& v) {
+    char buf[320];
+    std::snprintf(buf, sizeof buf,
+                  "validation at step %lld: HS PSNR %.2f dB (upsampling alone %.2f dB); depth RMSE %.3f m (constant "
+                  "depth %.3f m), MAE %.3f m (%.3f m); depth sigmoid saturated at %.1f%% of pixels",
+                  (long long)step, v.hs_psnr_db, v.baseline_hs_psnr_db, v.depth_rmse_m, v.baseline_depth_rmse_m,
+                  v.depth_mae_m, v.baseline_depth_mae_m, 100.0 * v.depth_saturated);
+    if (writer) log::info(buf);
   };
 
   std::unique_ptr<log::Progress> progress;
@@ -464,8 +550,11 @@ void Trainer::run(const std::string& out_dir, bool resume) {
   int64_t rate_n = 0;
   if (start == 0 && T.steps > 0) {  // where validation starts from
     const ValStats v = validate();
-    rows.push_back({"0", "0.000", "", fmt("%.6g", v.loss), "", "", "", "", fmt("%.4f", v.hs_psnr_db),
-                    fmt("%.5f", v.depth_rmse_m), fmt("%.5f", v.depth_mae_m)});
+    std::vector<std::string> row(columns.size());
+    row[col("step")] = "0", row[col("wall_s")] = "0.000";
+    val_cells(row, v);
+    rows.push_back(row);
+    log_val(0, v);
     if (writer) write_val_pictures(val_dir, 0);
     write_outputs();
   }
@@ -477,13 +566,15 @@ void Trainer::run(const std::string& out_dir, bool resume) {
     const bool last = k + 1 == T.steps;
     const bool do_val = (k + 1) % T.val_every == 0 || last;
     if ((k + 1) % T.log_every == 0 || do_val || k == start) {
-      std::vector<std::string> row{std::to_string(k + 1), fmt("%.3f", wall()), fmt("%.6g", st.loss), "",
-                                   fmt("%.6g", st.hs), fmt("%.6g", st.depth), fmt("%.4g", st.lr_net),
-                                   fmt("%.4g", st.lr_doe), "", "", ""};
+      std::vector<std::string> row(columns.size());
+      row[col("step")] = std::to_string(k + 1), row[col("wall_s")] = fmt("%.3f", wall());
+      row[col("train_loss")] = fmt("%.6g", st.loss), row[col("train_hs_l1")] = fmt("%.6g", st.hs);
+      row[col("train_depth_l1")] = fmt("%.6g", st.depth), row[col("lr_net")] = fmt("%.4g", st.lr_net);
+      row[col("lr_doe_m")] = fmt("%.4g", st.lr_doe);
       if (do_val) {
         const ValStats v = validate();
-        row[3] = fmt("%.6g", v.loss), row[8] = fmt("%.4f", v.hs_psnr_db);
-        row[9] = fmt("%.5f", v.depth_rmse_m), row[10] = fmt("%.5f", v.depth_mae_m);
+        val_cells(row, v);
+        if (last) log_val(k + 1, v);
       }
       rows.push_back(row);
       if (do_val && writer) write_val_pictures(val_dir, k + 1);

@@ -13,6 +13,7 @@
 // trains on its slice of the same global batch, with averaged gradients and
 // batch statistics of the global batch; rank 0 alone writes files.
 #pragma once
+#include <cmath>
 #include <future>
 #include <memory>
 #include <string>
@@ -46,6 +47,11 @@ struct StepStats {
 
 struct ValStats {
   double loss = 0, hs_psnr_db = 0, depth_rmse_m = 0, depth_mae_m = 0, peak = 0;
+  // Baselines on the same patches and pixels (train/baselines.h): the
+  // upsampling cube of the same sensor image, and the constant depth.
+  double baseline_hs_psnr_db = 0, baseline_depth_rmse_m = 0, baseline_depth_mae_m = 0;
+  // Fraction of pixels whose depth sigmoid is within 0.02 of 0 or 1 (saturated).
+  double depth_saturated = 0;
 };
 
 // InputError naming train.batch_size unless the global batch splits evenly over the ranks.
@@ -84,6 +90,15 @@ class Trainer {
   bool writes_outputs() const { return !group_ || group_->rank() == 0; }
 
   torch::Tensor height() const { return doe_.height().detach(); }
+  // The imaging PSFs' provider for simulate_sensor: the all-in-focus control's
+  // fixed stack, or nullptr (the DOE's PSFs from psf()).
+  const optics::PsfProvider& fixed_psf() const { return fixed_psf_; }
+  // Every band's and depth's imaging PSF [L, Z, P, P] (the DOE's or the fixed stack).
+  torch::Tensor psf_stack() const;
+  // The constant-depth baseline's inverse depth [1/m]: the training split's
+  // median (attach_data, or a checkpoint that stores it); NaN when unknown.
+  double baseline_inv_depth() const { return baseline_inv_depth_; }
+  bool doe_trained() const { return doe_trained_; }
   model::HsdNet& net() { return net_; }
   optics::Doe& doe() { return doe_; }
   const optics::PsfSimulator& psf() const { return *psf_; }
@@ -100,6 +115,10 @@ class Trainer {
   Config cfg_;
   std::shared_ptr<DataParallel> group_;
   optics::PsfProvider shared_psf_;  // training PSFs shared out over the ranks (distributed.split_psf)
+  optics::PsfProvider fixed_psf_;   // optics.psf_source = "all_in_focus": the control's PSFs
+  bool doe_trained_ = true;         // false when frozen (train.freeze_doe) or unused (a fixed PSF source)
+  double baseline_inv_depth_ = std::nan("");
+  torch::Tensor upsampling_w_;      // [L, 3] the spectral-upsampling baseline's weights
   int64_t rank_ = 0, world_ = 1;
   torch::Device device_;
   optics::Material material_;

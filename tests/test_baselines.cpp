@@ -1,0 +1,181 @@
+// Baselines and the all-in-focus control: the training split's median inverse
+// depth and the constant-depth errors against a hand computation; an evaluation
+// whose "network" outputs the baselines scores exactly the baselines; metrics
+// over the valid mask only; the all-in-focus control's PSF is one
+// diffraction-limited (Airy) pattern at every band and depth.
+#include <catch2/catch.hpp>
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "common/config.h"
+#include "common/error.h"
+#include "data/dataset.h"
+#include "data/synthetic_dataset.h"
+#include "helpers.h"
+#include "model/spectral_upsampling.h"
+#include "optics/all_in_focus.h"
+#include "optics/material.h"
+#include "optics/pixel_quadrature.h"
+#include "optics/psf.h"
+#include "optics/sensor.h"
+#include "train/baselines.h"
+#include "train/evaluator.h"
+#include "train/metrics.h"
+
+using namespace hsd;
+namespace fs = std::filesystem;
+
+namespace {
+
+data::LoadedScene scene_with(const torch::Tensor& depth_m, const torch::Tensor& mask) {
+  data::LoadedScene s;
+  s.scene.depth_m = depth_m.view({1, depth_m.size(-2), depth_m.size(-1)}).to(torch::kFloat32);
+  s.scene.mask = mask.view({1, mask.size(-2), mask.size(-1)}).to(torch::kFloat32);
+  s.scene.spectral = torch::zeros({1, depth_m.size(-2), depth_m.size(-1)});
+  return s;
+}
+
+}  // namespace
+
+TEST_CASE("baselines: the median inverse depth of the valid training pixels, by hand", "[baselines]") {
+  // Scene 1: depths 1, 2, 4, 0.5 m with the last pixel masked; scene 2: 0.8 m twice.
+  const auto a = scene_with(torch::tensor({1.0, 2.0, 4.0, 0.5}).view({2, 2}), torch::tensor({1.0, 1.0, 1.0, 0.0}).view({2, 2}));
+  const auto b = scene_with(torch::tensor({0.8, 0.8}).view({1, 2}), torch::ones({1, 2}));
+  // Valid inverse depths: 1, 0.5, 0.25, 1.25, 1.25 -> sorted 0.25 0.5 1 1.25 1.25, median 1.
+  CHECK(train::median_inverse_depth({a, b}) == Approx(1.0).epsilon(1e-6));
+  // Four values: the lower median (0.5 of 0.25, 0.5, 1, 1.25).
+  const auto c = scene_with(torch::tensor({1.0, 2.0, 4.0, 0.8}).view({2, 2}), torch::ones({2, 2}));
+  CHECK(train::median_inverse_depth({c}) == Approx(0.5).epsilon(1e-6));
+  // No valid pixel: refused.
+  const auto none = scene_with(torch::ones({2, 2}), torch::zeros({2, 2}));
+  CHECK_THROWS_AS(train::median_inverse_depth({none}), InputError);
+  const torch::Tensor z = train::constant_depth_map(torch::zeros({1, 3, 4}), 0.8);
+  CHECK(z.sizes() == torch::IntArrayRef({1, 3, 4}));
+  CHECK(z.min().item<double>() == Approx(1.25));
+  CHECK(z.max().item<double>() == Approx(1.25));
+}
+
+TEST_CASE("metrics: PSNR and SSIM over the valid mask ignore the invalid pixels, and NaN is never a best score", "[metrics][baselines]") {
+  torch::manual_seed(1);
+  const torch::Tensor truth = torch::rand({2, 24, 24});
+  torch::Tensor pred = truth + 0.01 * torch::randn({2, 24, 24});
+  torch::Tensor mask = torch::ones({1, 24, 24});
+  mask.narrow(2, 12, 12).zero_();                 // right half invalid
+  pred.narrow(2, 12, 12).fill_(7.0);              // garbage there
+  const torch::Tensor left_p = pred.narrow(2, 0, 12), left_t = truth.narrow(2, 0, 12);
+  CHECK(train::psnr_db(pred, truth, 1.0, mask) == Approx(train::psnr_db(left_p, left_t, 1.0)).epsilon(1e-9));
+  CHECK(train::psnr_db(pred, truth, 1.0) < train::psnr_db(pred, truth, 1.0, mask) - 20.0);
+  CHECK(train::ssim(pred, truth, 1.0, mask) > 0.9);
+  CHECK(train::ssim(pred, truth, 1.0) < 0.7);
+  torch::Tensor nan = pred.clone();
+  nan[0][0][0] = std::nan("");
+  CHECK(std::isnan(train::psnr_db(nan, truth, 1.0, mask)));
+}
+
+TEST_CASE("baselines: a network that outputs the baselines scores exactly the baselines, which match a hand computation",
+          "[baselines][eval]") {
+  const fs::path root = fs::temp_directory_path() / "hsd_test_baselines";
+  fs::remove_all(root);
+  const Config cfg = load_config(test::source_path("configs/tiny.json"),
+                                 {"data.root=\"" + root.string() + "\"", "data.generator.train_scenes=2",
+                                  "data.generator.val_scenes=0", "data.generator.test_scenes=2",
+                                  "data.generator.colorchecker=false", "data.generator.width_px=48",
+                                  "data.generator.height_px=40", "sensor.noise_std=0.01"});
+  data::ensure_dataset(cfg);
+  const auto bands = cfg.optics.wavelengths_m();
+  const double bw = cfg.optics.band_width_m();
+  const auto train_split = data::load_split(root.string(), "train", bands, bw, 1);
+  const auto test_split = data::load_split(root.string(), "test", bands, bw, 1);
+  // The median by hand: sort every valid inverse depth, take the lower middle.
+  std::vector<double> inv;
+  for (const auto& s : train_split) {
+    const auto z = s.scene.depth_m.contiguous().data_ptr<float>();
+    const auto m = s.scene.mask.contiguous().data_ptr<float>();
+    for (int64_t i = 0; i < s.scene.depth_m.numel(); ++i)
+      if (m[i] > 0.5f) inv.push_back(1.0 / double(z[i]));
+  }
+  std::sort(inv.begin(), inv.end());
+  const double median = inv[(inv.size() - 1) / 2];
+  CHECK(train::median_inverse_depth(train_split) == Approx(median).epsilon(1e-12));
+
+  const auto material = optics::Material::load(cfg.optics.material);
+  const optics::PsfSimulator sim(optics::make_psf_spec(cfg.optics, material, torch::kCPU));
+  const optics::SensorModel sensor = optics::make_sensor_model(cfg.sensor, sim.spec(), bw);
+  const torch::Tensor h = optics::initial_height(cfg.optics, material, cfg.seed);
+  const torch::Tensor w = model::spectral_upsampling_weights(sensor.omega);
+  // The "network" that answers with the baselines themselves.
+  auto trivial = [&](const torch::Tensor& x) {
+    return std::make_pair(model::spectral_upsample(w, x), train::constant_depth_map(x.narrow(1, 0, 1), median));
+  };
+  const train::EvalResult r = train::evaluate(sim, sensor, h, trivial, cfg, "test", (root / "eval").string(), median);
+  REQUIRE(r.scenes.size() == 2);
+  for (size_t i = 0; i < r.scenes.size(); ++i) {
+    const auto& m = r.scenes[i];
+    CHECK(m.depth_rmse_m == m.baseline_constant_depth_rmse_m);
+    CHECK(m.depth_mae_m == m.baseline_constant_depth_mae_m);
+    CHECK(m.hs_psnr_db == m.baseline_upsampling_hs_psnr_db);
+    CHECK(m.hs_ssim == m.baseline_upsampling_hs_ssim);
+    // The constant's errors by hand over the valid pixels.
+    const auto& sc = test_split[i].scene;
+    const auto z = sc.depth_m.contiguous().data_ptr<float>();
+    const auto mk = sc.mask.contiguous().data_ptr<float>();
+    double se = 0, ae = 0, n = 0;
+    for (int64_t k = 0; k < sc.depth_m.numel(); ++k)
+      if (mk[k] > 0.5f) {
+        const double e = 1.0 / median - double(z[k]);
+        se += e * e, ae += std::abs(e), n += 1;
+      }
+    CHECK(m.baseline_constant_depth_rmse_m == Approx(std::sqrt(se / n)).epsilon(1e-5));
+    CHECK(m.baseline_constant_depth_mae_m == Approx(ae / n).epsilon(1e-5));
+  }
+  CHECK(r.mean.baseline_constant_depth_rmse_m ==
+        Approx(0.5 * (r.scenes[0].baseline_constant_depth_rmse_m + r.scenes[1].baseline_constant_depth_rmse_m)));
+  // metrics.json carries the contract's baseline keys, mean and per scene.
+  const Json j = Json::parse(std::ifstream(root / "eval" / "metrics.json"));
+  for (const char* k : {"baseline_constant_depth_rmse_m", "baseline_constant_depth_mae_m", "baseline_upsampling_hs_psnr_db",
+                        "baseline_upsampling_hs_ssim"}) {
+    CHECK(j.contains(k));
+    CHECK(j["scenes"][0].contains(k));
+  }
+  CHECK(j.at("depth_rmse_m") == j.at("baseline_constant_depth_rmse_m"));
+}
+
+TEST_CASE("all-in-focus control: one diffraction-limited Airy pattern at every band and depth", "[baselines][psf][closed-form]") {
+  const Config cfg = load_config(test::source_path("configs/quick.json"), {});
+  const auto material = optics::Material::load(cfg.optics.material);
+  const torch::Tensor p = optics::all_in_focus_psf(cfg.optics, material, torch::kCPU);
+  const int64_t L = int64_t(cfg.optics.wavelengths_nm.size()), Z = int64_t(cfg.optics.depths_m.size());
+  const int64_t P = cfg.optics.psf_size;
+  REQUIRE(p.sizes() == torch::IntArrayRef({L, Z, P, P}));
+  for (int64_t l = 0; l < L; ++l)
+    for (int64_t z = 0; z < Z; ++z) CHECK(p[l][z].equal(p[0][0]));  // the same pattern, bit for bit
+  CHECK(p[0][0].sum().item<double>() == Approx(1.0).epsilon(1e-5));
+  // Against the Airy pattern (2 J1(v)/v)², v = π D r / (λ0 s), integrated over
+  // each pixel (8x8 Gauss rule) and normalised to the window like the PSF.
+  const double lambda = cfg.optics.doe.design_wavelength_m, s = cfg.optics.sensor_distance_m;
+  const double D = cfg.optics.aperture_diameter_m, pitch = cfg.optics.pixel_pitch_m;
+  const auto q = optics::gauss_legendre(8);
+  torch::Tensor airy = torch::zeros({P, P}, torch::kFloat64);
+  for (int64_t i = 0; i < P; ++i)
+    for (int64_t j = 0; j < P; ++j) {
+      double sum = 0.0;
+      for (size_t a = 0; a < q.nodes.size(); ++a)
+        for (size_t b = 0; b < q.nodes.size(); ++b) {
+          const double r = std::hypot((double(j - P / 2) + q.nodes[a]) * pitch, (double(i - P / 2) + q.nodes[b]) * pitch);
+          const double v = M_PI * D * r / (lambda * s);
+          const double amp = v < 1e-9 ? 1.0 : 2.0 * std::cyl_bessel_j(1.0, v) / v;
+          sum += q.weights[a] * q.weights[b] * amp * amp;
+        }
+      airy[i][j] = sum;
+    }
+  airy = airy / airy.sum();
+  const double rel_l1 = ((p[0][0].to(torch::kFloat64) - airy).abs().sum() / airy.sum()).item<double>();
+  INFO("relative L1 to the Airy pattern: " << rel_l1);
+  CHECK(rel_l1 < 0.01);
+  // And it is not the DOE's: the quick config's Fresnel PSFs change with depth.
+  const optics::PsfSimulator sim(optics::make_psf_spec(cfg.optics, material, torch::kCPU));
+  const torch::Tensor doe = sim.compute(optics::initial_height(cfg.optics, material, 0)).psf;
+  CHECK((doe[4][0] - doe[4][1]).abs().sum().item<double>() > 0.1);
+}
