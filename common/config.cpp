@@ -133,6 +133,8 @@ DataConfig parse_data(const JsonReader& d) {
   if (c.intensity_max < c.intensity_min) d.fail("intensity_max", "must be >= data.intensity_min");
   c.patch_size_px = d.get_int("patch_size_px", c.patch_size_px);
   if (c.patch_size_px < 8 || c.patch_size_px > 8192) d.fail("patch_size_px", "must be in [8, 8192]");
+  c.render_margin_px = d.get_int("render_margin_px", c.render_margin_px);
+  if (c.render_margin_px < -1 || c.render_margin_px > 4096) d.fail("render_margin_px", "must be in [-1, 4096] (-1 = optics.psf_size / 2)");
   c.patches = d.get_int("patches", c.patches);
   if (c.patches < 1) d.fail("patches", "must be >= 1");
   c.loader_threads = d.get_int("loader_threads", c.loader_threads);
@@ -188,6 +190,12 @@ DataConfig parse_data(const JsonReader& d) {
       gr->fail("texture_scale_max", "must be in [texture_scale_min, 100]");
     g.dead_leaves_max_shapes = gr->get_int("dead_leaves_max_shapes", g.dead_leaves_max_shapes);
     if (g.dead_leaves_max_shapes < 1 || g.dead_leaves_max_shapes > 1000000) gr->fail("dead_leaves_max_shapes", "must be in [1, 1e6]");
+    g.dead_leaves_min_radius = gr->get_number("dead_leaves_min_radius", g.dead_leaves_min_radius);
+    g.dead_leaves_max_radius = gr->get_number("dead_leaves_max_radius", g.dead_leaves_max_radius);
+    if (!(g.dead_leaves_min_radius > 0.0 && g.dead_leaves_min_radius <= 1.0))
+      gr->fail("dead_leaves_min_radius", "must be in (0, 1] (a fraction of the smaller image side)");
+    if (!(g.dead_leaves_max_radius >= g.dead_leaves_min_radius && g.dead_leaves_max_radius <= 2.0))
+      gr->fail("dead_leaves_max_radius", "must be in [dead_leaves_min_radius, 2]");
     g.spectral_exclusion = gr->get_number("spectral_exclusion", g.spectral_exclusion);
     if (!(g.spectral_exclusion >= 0.0 && g.spectral_exclusion <= 0.2))
       gr->fail("spectral_exclusion", "must be in [0, 0.2] (relative shape distance to a ColorChecker patch)");

@@ -161,6 +161,9 @@ struct GeneratorConfig {
   std::string texture_dir;                       // photographs for textures; "" = the shipped data/textures
   double texture_scale_min = 0.25, texture_scale_max = 1.25;  // scene pixels per texture pixel (log-uniform)
   int64_t dead_leaves_max_shapes = 4000;         // upper bound on the shapes of one dead-leaves scene
+  // Dead-leaves radii follow p(r) ∝ r⁻³ on [min, max] · min(H, W) (min >= 1.5 px).
+  double dead_leaves_min_radius = 0.02;
+  double dead_leaves_max_radius = 0.5;
   double spectral_exclusion = 0.05;              // measured spectra whose shape is this close to a ColorChecker patch are dropped
 };
 
@@ -175,6 +178,12 @@ struct DataConfig {
   std::vector<std::string> illuminants = default_augmentation_illuminants();
   double intensity_min = 0.5, intensity_max = 1.0;  // random global scale of the lit radiance
   int64_t patch_size_px = 256;
+  // Scene context rendered around each training patch [px] so the patch's
+  // sensor image holds the light its surroundings blur into it (the network
+  // and the loss see the centre patch_size_px only); -1 = the PSF's and the
+  // soft layer masks' reach, optics.psf_size / 2 + ceil(3 sensor.mask_sigma_px);
+  // 0 = none (the patch's own edges replicated outward).
+  int64_t render_margin_px = -1;
   int64_t patches = 20000;           // per epoch of the patch sampler (the paper: 20,000)
   int64_t loader_threads = 0;        // scene loading; 0 = all cores
   GeneratorConfig generator;

@@ -229,7 +229,8 @@ GeneratedScene generate_dead_leaves_scene(const GeneratorConfig& g, const SceneS
   const int64_t H = g.height_px, W = g.width_px, L = int64_t(wavelengths_m.size());
   const double inv_near = 1.0 / g.depth_min_m, inv_far = 1.0 / g.depth_max_m, range = inv_near - inv_far;
   const double c_stop = 0.9;  // the background fills the rest
-  const double rmin = std::max(1.5, 0.02 * double(std::min(H, W))), rmax = 0.5 * double(std::min(H, W));
+  const double rmin = std::max(1.5, g.dead_leaves_min_radius * double(std::min(H, W)));
+  const double rmax = std::max(rmin, g.dead_leaves_max_radius * double(std::min(H, W)));
   struct Shape {
     double xc, yc, inv, gx, gy, theta, texel, ox, oy;
   };

@@ -1,13 +1,18 @@
 #!/usr/bin/env bash
 # The main job on defaults, on a fresh Debian 12 machine: install packages,
-# build, and run the quick end-to-end experiment: generate synthetic HS-D data
-# if missing (out/quick/data), then train the DOE and the U-Net jointly with
-# configs/quick.json (outputs in out/quick/run). Extra arguments go to
-# hsd_train (e.g. --resume, or --set train.steps=600).
+# build, and run the quick end-to-end experiment with configs/quick.json:
+#   1. synthetic HS-D data if missing (out/quick/data), then joint training of
+#      the DOE and the U-Net (out/quick/run),
+#   2. evaluation on the held-out test scenes against the baselines
+#      (out/quick/eval/metrics.json, report.md).
+# Extra arguments go to hsd_train (e.g. --resume).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 bash scripts/build.sh
-build/bin/hsd_train --config configs/quick.json --out out/quick/run "$@"
-echo "quickstart: done. Curves: out/quick/run/curves.png and val_psnr.png; metrics: out/quick/run/metrics.csv;"
-echo "reconstructions, depth maps, error maps and PSF atlases: out/quick/run/val/; checkpoint: out/quick/run/checkpoints/last.pt"
+CFG=configs/quick.json
+build/bin/hsd_train --config "$CFG" --out out/quick/run "$@"
+build/bin/hsd_eval --config "$CFG" --checkpoint out/quick/run/checkpoints/last.pt --out out/quick/eval
+echo "quickstart: done. Test-set numbers against the baselines: out/quick/eval/report.md (metrics.json);"
+echo "curves with the baselines drawn: out/quick/run/curves.png, val_psnr.png, val_depth.png;"
+echo "reconstructions, depth maps and PSF atlases: out/quick/run/val/ and out/quick/eval/; checkpoint: out/quick/run/checkpoints/last.pt"

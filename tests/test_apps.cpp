@@ -385,13 +385,16 @@ TEST_CASE("hsd_train writes the contract's outputs and resumes exactly after SIG
   const Run a = run(cfg + " --out " + (base / "a").string());
   INFO(a.err);
   REQUIRE(a.code == 0);
-  for (const char* f : {"metrics.csv", "curves.png", "val_psnr.png", "config.json", "checkpoints/last.pt",
+  for (const char* f : {"metrics.csv", "curves.png", "val_psnr.png", "val_depth.png", "config.json", "checkpoints/last.pt",
                         "val/step_000008_reconstructions.png", "val/step_000024_psf_atlas.png"})
     CHECK(fs::exists(base / "a" / f));
   std::ifstream hdr(base / "a" / "metrics.csv");
   std::string header;
   std::getline(hdr, header);
-  for (const char* k : {"step", "wall_s", "train_loss", "val_loss"}) CHECK_THAT(header, Catch::Contains(k));
+  for (const char* k : {"step", "wall_s", "train_loss", "val_loss", "val_baseline_hs_psnr_db", "val_baseline_depth_rmse_m",
+                        "val_depth_saturated"})
+    CHECK_THAT(header, Catch::Contains(k));
+  CHECK_THAT(a.err, Catch::Contains("constant depth"));  // validation logs the baselines
   const auto curve_a = loss_curve(base / "a" / "metrics.csv");
   CHECK(curve_a.size() == 25);  // step 0 (validation only) and 1..24
   // Kill -9 as soon as a checkpoint exists, then resume: the same curve.
@@ -480,7 +483,8 @@ TEST_CASE("hsd_eval and hsd_export on a trained checkpoint: metrics, report, pic
   REQUIRE(r.code == 0);
   const auto j = nlohmann::json::parse(std::ifstream(base / "eval" / "metrics.json"));
   for (const char* k : {"hs_psnr_db", "hs_ssim", "lum_psnr_db", "lum_ssim", "depth_rmse_m", "depth_mae_m",
-                        "colorchecker_reflectance_rmse"})
+                        "colorchecker_reflectance_rmse", "baseline_constant_depth_rmse_m", "baseline_constant_depth_mae_m",
+                        "baseline_upsampling_hs_psnr_db", "baseline_upsampling_hs_ssim"})
     CHECK(j.contains(k));
   CHECK(j["scenes"].size() == 2);  // the test scene and the ColorChecker
   CHECK(j["hs_ssim"].get<double>() <= 1.0);
@@ -504,7 +508,8 @@ TEST_CASE("hsd_eval and hsd_export on a trained checkpoint: metrics, report, pic
   INFO(em.err);
   REQUIRE(em.code == 0);
   const auto jm = nlohmann::json::parse(std::ifstream(base / "eval_model" / "metrics.json"));
-  for (const char* k : {"hs_psnr_db", "hs_ssim", "depth_rmse_m", "colorchecker_reflectance_rmse"})
+  for (const char* k : {"hs_psnr_db", "hs_ssim", "depth_rmse_m", "colorchecker_reflectance_rmse",
+                        "baseline_constant_depth_rmse_m", "baseline_upsampling_hs_psnr_db"})
     CHECK(jm[k].get<double>() == Approx(j[k].get<double>()).epsilon(1e-4));
   CHECK(run("hsd_eval --config configs/tiny.json" + sets + " --out " + (base / "bad").string()).code == 2);  // neither
   // Reconstruct an sRGB PNG and a linear EXR with the exported model, in tiles.
@@ -563,7 +568,7 @@ TEST_CASE("hsd_eval and hsd_export on a trained checkpoint: metrics, report, pic
   CHECK_THAT(bad.err, Catch::Contains("--split"));
 }
 
-TEST_CASE("hsd_ablate runs the four DOE arms and writes the table and the error-vs-time plot", "[app][eval]") {
+TEST_CASE("hsd_ablate runs the four DOE arms and the control, without a shell, and writes the table and the plot", "[app][eval]") {
   const fs::path base = fs::temp_directory_path() / "hsd_test_ablate";
   fs::remove_all(base);
   const std::string sets =
@@ -573,12 +578,22 @@ TEST_CASE("hsd_ablate runs the four DOE arms and writes the table and the error-
       " --set data.generator.val_scenes=1 --set data.generator.test_scenes=1 --set data.generator.width_px=48"
       " --set data.generator.height_px=40 --set fisher.design_samples=32 --set fisher.window_px=9 --set fisher.steps=3"
       " --set fisher.zernike_modes=6";
-  const Run r = run("hsd_ablate --config configs/tiny.json" + sets + " --seeds 0,1 --out " + (base / "out").string());
+  // A --set value with a quote and a command substitution reaches the sub-runs
+  // as text: no shell sees it (it used to break the runs or run the command).
+  const fs::path marker = base / "injected";
+  const std::string note = " --set \"_note=Baek's DOE \\$(touch " + marker.string() + ")\"";
+  const Run r = run("hsd_ablate --config configs/tiny.json" + sets + note + " --seeds 0,1 --out " + (base / "out").string());
   INFO(r.err);
   REQUIRE(r.code == 0);
+  CHECK_FALSE(fs::exists(marker));
   for (const char* f : {"ablation.md", "ablation.csv", "error_vs_time.png", "fisher/crlb.json",
-                        "fresnel_fixed_seed0/eval/metrics.json", "fisher_learned_seed1/run/metrics.csv"})
+                        "fresnel_fixed_seed0/eval/metrics.json", "fisher_learned_seed1/run/metrics.csv",
+                        "all_in_focus_seed1/eval/metrics.json"})
     CHECK(fs::exists(base / "out" / f));
+  std::ifstream md_file(base / "out" / "ablation.md");
+  const std::string md((std::istreambuf_iterator<char>(md_file)), std::istreambuf_iterator<char>());
+  CHECK_THAT(md, Catch::Contains("all-in-focus control") && Catch::Contains("2 standard errors") &&
+                     Catch::Contains("RMSE / constant"));
   std::ifstream csv(base / "out" / "ablation.csv");
   std::string line;
   int rows = 0;
@@ -588,7 +603,7 @@ TEST_CASE("hsd_ablate runs the four DOE arms and writes the table and the error-
     ++rows;
     CHECK_THAT(line, Catch::Contains(",2,"));  // two seeds per arm
   }
-  CHECK(rows == 4);
+  CHECK(rows == 5);
   const Run bad = run("hsd_ablate --config configs/tiny.json --seeds 0,x --out " + (base / "bad").string());
   CHECK(bad.code == 2);
   CHECK_THAT(bad.err, Catch::Contains("--seeds"));

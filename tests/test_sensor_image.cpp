@@ -183,3 +183,31 @@ TEST_CASE("sensor: an opaque near layer hides what lies behind it", "[sensor][oc
   CHECK(J[0][1][20][20].item<double>() < 1e-9);               // deep inside the near square: black
   CHECK(J[0][1][2][2].item<double>() == Approx(2.0).epsilon(1e-9));  // far away from it: 2 bands of 1
 }
+
+TEST_CASE("sensor: a crop rendered with a margin of the PSF's reach equals the whole scene's image at its centre",
+          "[sensor][train]") {
+  // What training patches rely on (data.render_margin_px): the light that
+  // neighbouring scene content blurs into a patch is there, not an
+  // edge-replicated stand-in. Margin r + 3σ of the soft layer masks suffices.
+  const int64_t L = 4, Z = 3, P = 9, H = 48, W = 52, S = 16, r = P / 2;
+  const double sigma = 1.0;
+  const int64_t m = r + 3;
+  const std::vector<double> depths{0.5, 1.0, 2.0};
+  torch::manual_seed(4);
+  const torch::Tensor psf = random_psf(L, Z, P, 3);
+  const torch::Tensor omega = torch::rand({3, L}, torch::kFloat64);
+  const torch::Tensor I = torch::rand({1, L, H, W}, torch::kFloat64);
+  const torch::Tensor depth = 0.45 + 1.8 * torch::rand({1, 1, H, W}, torch::kFloat64);
+  const torch::Tensor whole = optics::render_sensor_image(I, optics::layer_masks(depth, depths, sigma), psf, omega);
+  const int64_t y0 = 17, x0 = 20;  // patch corner; the crop spans [y0 - m, y0 + S + m)
+  auto crop = [&](const torch::Tensor& t, int64_t k) { return t.narrow(2, y0 - k, S + 2 * k).narrow(3, x0 - k, S + 2 * k); };
+  const torch::Tensor with_margin =
+      optics::render_sensor_image(crop(I, m), optics::layer_masks(crop(depth, m), depths, sigma), psf, omega);
+  const torch::Tensor without =
+      optics::render_sensor_image(crop(I, 0), optics::layer_masks(crop(depth, 0), depths, sigma), psf, omega);
+  const torch::Tensor truth = crop(whole, 0);
+  const double scale = truth.abs().max().item<double>();
+  CHECK((with_margin.narrow(2, m, S).narrow(3, m, S) - truth).abs().max().item<double>() < 1e-10 * scale);
+  // Without the margin the patch's border pixels are wrong by a visible amount.
+  CHECK((without - truth).abs().max().item<double>() > 1e-2 * scale);
+}

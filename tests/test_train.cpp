@@ -164,3 +164,36 @@ TEST_CASE("train: an exploding learning rate is refused or stopped by the NaN gu
   CHECK(message.find("step 15") != std::string::npos);
   CHECK(message.find("NaN or Inf") != std::string::npos);
 }
+
+TEST_CASE("train: 600 steps on an easy scene set learn depth better than the constant-depth baseline",
+          "[train][learn]") {
+  // Easy: two depth layers, a Fresnel lens focused beyond the far one (the
+  // near layer blurred by ~3.5 px, the far one sharp), textured tabletop
+  // scenes (layout and optics both tell depth), no noise, patches rendered
+  // with scene around them, group normalisation. What must not happen again: a depth head that
+  // stays at the constant's level (README, docs/learning.md).
+  const std::string root = (fs::temp_directory_path() / "hsd_test_learnable").string();
+  fs::remove_all(root);
+  const Config cfg = load_config(
+      test::source_path("configs/tiny.json"),
+      {"data.root=\"" + root + "\"", "model.base_width=8", "model.levels=2", "model.norm=group", "train.batch_size=4", "train.steps=600",
+       "train.lr_net=0.003", "train.loss_beta=1.0", "train.freeze_doe=true", "train.val_patches=16",
+       "train.warmup_steps=10", "optics.depths_m=[0.5, 2.0]", "optics.doe.design_depth_m=3.0",
+       "data.patch_size_px=32", "data.generator.train_scenes=12", "data.generator.val_scenes=2",
+       "data.generator.test_scenes=0", "data.generator.colorchecker=false", "data.generator.width_px=96",
+       "data.generator.height_px=80", "data.generator.depth_min_m=0.5", "data.generator.depth_max_m=2.0",
+       "data.generator.layouts={\"dead_leaves\": 0.0, \"tabletop\": 1.0, \"classic_tabletop\": 0.0}",
+       "data.render_margin_px=-1", "threads=2"});
+  train::Trainer t(cfg);
+  t.attach_data();
+  const train::ValStats before = t.validate();
+  for (int64_t k = 0; k < cfg.train.steps; ++k) t.step(t.train_batch(k), k);
+  const train::ValStats after = t.validate();
+  INFO("validation depth RMSE " << before.depth_rmse_m << " -> " << after.depth_rmse_m << " m, constant depth "
+                                << after.baseline_depth_rmse_m << " m");
+  CHECK(after.baseline_depth_rmse_m == before.baseline_depth_rmse_m);  // the same pixels
+  // Measured: 0.45 m against the constant's 0.55 m (0.82x); with batch
+  // normalisation instead 0.50 m (0.90x), the all-in-focus control 0.43 m:
+  // on these scenes the layout, not yet the optics, carries the depth.
+  CHECK(after.depth_rmse_m < 0.9 * after.baseline_depth_rmse_m);
+}

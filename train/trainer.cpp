@@ -110,6 +110,10 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
     if (!cfg.train.freeze_doe) log::info("optics.psf_source = \"all_in_focus\": the control; the DOE is not used and only the network is trained");
   }
   doe_trained_ = !cfg.train.freeze_doe && !fixed_psf_;
+  // The PSF's reach plus the soft layer masks' (3σ): then the patch's image is
+  // the whole scene's image at those pixels (tests: sensor, margin).
+  margin_ = cfg.data.render_margin_px >= 0 ? cfg.data.render_margin_px
+                                           : cfg.optics.psf_size / 2 + int64_t(std::ceil(3.0 * cfg.sensor.mask_sigma_px));
   net_->to(device_);
   weights_ = {cfg.train.loss_alpha, cfg.train.loss_beta, cfg.train.loss_gamma};
   std::vector<torch::optim::OptimizerParamGroup> groups;
@@ -198,12 +202,13 @@ void Trainer::attach_data() {
   baseline_inv_depth_ = median_inverse_depth(train_scenes_);
   const data::Manifest m = data::read_manifest(root);
   bank_ = std::make_unique<data::IlluminantBank>(cfg_.data.illuminants, bands, bw);
-  sampler_ = std::make_unique<data::PatchSampler>(train_scenes_, cfg_.data.patch_size_px);
+  const int64_t rendered = cfg_.data.patch_size_px + 2 * margin_;
+  sampler_ = std::make_unique<data::PatchSampler>(train_scenes_, rendered);
   // Validation: the val split (the train split with other patches if there is none).
   std::unique_ptr<data::PatchSampler> val_sampler;
   if (!m.split("val").empty()) {
     val_scenes_ = data::load_split(root, "val", bands, bw, cfg_.data.loader_threads);
-    val_sampler = std::make_unique<data::PatchSampler>(val_scenes_, cfg_.data.patch_size_px);
+    val_sampler = std::make_unique<data::PatchSampler>(val_scenes_, rendered);
   } else {
     log::warn(root + "/manifest.json has no val split: validating on other patches of the train split");
   }
@@ -215,8 +220,15 @@ void Trainer::attach_data() {
   val_ = stack(patches, device_);
   log::info("data: " + std::to_string(train_scenes_.size()) + " train scenes (" + std::to_string(sampler_->candidates()) +
             " valid windows), " + std::to_string(patches.size()) + " validation patches of " +
-            std::to_string(cfg_.data.patch_size_px) + " px; constant-depth baseline " +
+            std::to_string(cfg_.data.patch_size_px) + " px (rendered with " + std::to_string(margin_) +
+            " px of scene around them); constant-depth baseline " +
             fmt("%.3f m", 1.0 / baseline_inv_depth_) + " (the train split's median inverse depth)");
+}
+
+torch::Tensor Trainer::centre(const torch::Tensor& t) const {
+  const int64_t S = cfg_.data.patch_size_px, m = (t.size(2) - S) / 2;
+  if (m <= 0) return t;
+  return t.narrow(2, m, S).narrow(3, m, S);
 }
 
 torch::Tensor Trainer::psf_stack() const {
@@ -258,8 +270,9 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   const optics::SensorImage img =
       optics::simulate_sensor(*psf_, sensor_, h, batch.radiance, batch.depth_m, gens, optics::LeaveOut(),
                               fixed_psf_ ? fixed_psf_ : shared_psf_);
-  const model::NetOutput out = net_->forward(img.image);
-  const LossTerms L = reconstruction_loss(out.hs, batch.radiance, out.inv_depth, 1.0 / batch.depth_m, weights_);
+  const model::NetOutput out = net_->forward(centre(img.image));
+  const LossTerms L =
+      reconstruction_loss(out.hs, centre(batch.radiance), out.inv_depth, 1.0 / centre(batch.depth_m), weights_);
   // The global batch's loss terms (the mean of the ranks' equal slices): what
   // is logged, and what every rank checks, so all ranks stop together.
   std::vector<double> terms{L.total.item<double>(), L.hs.item<double>(), L.depth.item<double>(), L.tv.item<double>()};
@@ -300,15 +313,16 @@ ValStats Trainer::validate() {
   const int64_t lo = n_all * rank_ / world_, hi = n_all * (rank_ + 1) / world_;
   double loss = 0, se = 0, abs_z = 0, se_z = 0, count = 0, px = 0, se_up = 0, abs_c = 0, se_c = 0, sat = 0;
   const double c_inv = std::isfinite(baseline_inv_depth_) ? baseline_inv_depth_ : 1.0;
-  const double peak = val_.radiance.max().item<double>();
+  const double peak = centre(val_.radiance).max().item<double>();
   for (int64_t i = lo; i < hi; i += B) {
     const int64_t b = std::min(B, hi - i);
-    const torch::Tensor I = val_.radiance.narrow(0, i, b), Z = val_.depth_m.narrow(0, i, b);
+    const torch::Tensor Iw = val_.radiance.narrow(0, i, b), Zw = val_.depth_m.narrow(0, i, b);
     const optics::SensorImage img =
-        optics::simulate_sensor(*psf_, sensor_, h, I, Z, image_generators(mix(cfg_.seed, kValSeed + 1), i, b),
+        optics::simulate_sensor(*psf_, sensor_, h, Iw, Zw, image_generators(mix(cfg_.seed, kValSeed + 1), i, b),
                                 optics::LeaveOut(), fixed_psf_);
-    const model::NetOutput out = net_->forward(img.image);
-    se_up += (model::spectral_upsample(upsampling_w_, img.image) - I).pow(2).sum().item<double>();
+    const torch::Tensor I = centre(Iw), Z = centre(Zw), J = centre(img.image);
+    const model::NetOutput out = net_->forward(J);
+    se_up += (model::spectral_upsample(upsampling_w_, J) - I).pow(2).sum().item<double>();
     const torch::Tensor Zc = constant_depth_map(Z, c_inv);
     abs_c += (Zc - Z).abs().sum().item<double>();
     se_c += (Zc - Z).pow(2).sum().item<double>();
@@ -409,11 +423,12 @@ void Trainer::write_val_pictures(const std::string& dir, int64_t step) {
   torch::NoGradGuard no_grad;
   net_->eval();
   const int64_t n = std::min<int64_t>(2, val_.radiance.size(0));
-  const torch::Tensor I = val_.radiance.narrow(0, 0, n), Z = val_.depth_m.narrow(0, 0, n);
-  const optics::SensorImage img =
-      optics::simulate_sensor(*psf_, sensor_, doe_.height(), I, Z, image_generators(mix(cfg_.seed, kValSeed + 1), 0, n),
-                              optics::LeaveOut(), fixed_psf_);
-  const model::NetOutput out = net_->forward(img.image);
+  const optics::SensorImage img = optics::simulate_sensor(
+      *psf_, sensor_, doe_.height(), val_.radiance.narrow(0, 0, n), val_.depth_m.narrow(0, 0, n),
+      image_generators(mix(cfg_.seed, kValSeed + 1), 0, n), optics::LeaveOut(), fixed_psf_);
+  const torch::Tensor I = centre(val_.radiance.narrow(0, 0, n)), Z = centre(val_.depth_m.narrow(0, 0, n));
+  const torch::Tensor J = centre(img.image);
+  const model::NetOutput out = net_->forward(J);
   net_->train();
   const auto bands = cfg_.optics.wavelengths_m();
   const double bw = cfg_.optics.band_width_m();
@@ -430,7 +445,7 @@ void Trainer::write_val_pictures(const std::string& dir, int64_t step) {
       parts.push_back(p + f + ".png");
     data::write_srgb_png(p + "truth_srgb.png", k == 0 ? truth0 : data::spectral_to_linear_srgb(I[k].cpu(), bands, bw), white);
     data::write_srgb_png(p + "recon_srgb.png", data::spectral_to_linear_srgb(out.hs[k].clamp_min(0).cpu(), bands, bw), white);
-    data::write_srgb_png(p + "sensor.png", img.image[k].cpu(), std::max(1e-6, img.image[k].max().item<double>()));
+    data::write_srgb_png(p + "sensor.png", J[k].cpu(), std::max(1e-6, J[k].max().item<double>()));
     data::write_depth_png(p + "truth_depth.png", Z[k].cpu(), {}, near, far);
     data::write_depth_png(p + "recon_depth.png", out.depth_m[k].cpu(), {}, near, far);
     // Error map: |Î − I| averaged over bands, as grey scaled to the patch's peak radiance / 4.
@@ -508,10 +523,10 @@ void Trainer::run(const std::string& out_dir, bool resume) {
     // The baselines as lines beside the model's curves: a curve that does not
     // leave its baseline has learned nothing.
     write_line_plot(out_dir + "/val_psnr.png", "validation hyperspectral PSNR [dB]", "step",
-                    {{"model", vx, psnr, {30, 140, 30}}, {"upsampling alone (baseline)", vx, base_psnr, {150, 150, 150}}},
+                    {{"model", vx, psnr, {30, 140, 30}}, {"upsampling alone", vx, base_psnr, {150, 150, 150}}},
                     false);
     write_line_plot(out_dir + "/val_depth.png", "validation depth RMSE [m]", "step",
-                    {{"model", vx, rmse, {200, 60, 30}}, {"constant depth (baseline)", vx, base_rmse, {150, 150, 150}}},
+                    {{"model", vx, rmse, {200, 60, 30}}, {"constant depth", vx, base_rmse, {150, 150, 150}}},
                     false);
   };
   auto val_cells = [&](std::vector<std::string>& row, const ValStats& v) {

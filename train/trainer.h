@@ -35,9 +35,12 @@
 
 namespace hsd::train {
 
+// A batch of patches with their rendering margin m (data.render_margin_px):
+// S' = S + 2m; the sensor image is rendered on S' and the network and the loss
+// see the centre S×S.
 struct Batch {
-  torch::Tensor radiance;   // [B, L, S, S]
-  torch::Tensor depth_m;    // [B, 1, S, S]
+  torch::Tensor radiance;   // [B, L, S', S']
+  torch::Tensor depth_m;    // [B, 1, S', S']
   int64_t first_index = 0;  // index of image 0 within the global batch (keys its noise draws)
 };
 
@@ -107,6 +110,8 @@ class Trainer {
 
  private:
   void write_val_pictures(const std::string& dir, int64_t step);
+  // The centre patch_size_px × patch_size_px of [B, C, S', S'] (itself when S' = S).
+  torch::Tensor centre(const torch::Tensor& t) const;
   std::vector<torch::Tensor> trained_parameters() const;  // what Adam updates
   std::vector<torch::Tensor> replicated_state(bool with_buffers = true) const;  // parameters, buffers, Adam moments
   // Every checkpoint: the ranks' parameters must agree (they can only drift by
@@ -119,6 +124,7 @@ class Trainer {
   bool doe_trained_ = true;         // false when frozen (train.freeze_doe) or unused (a fixed PSF source)
   double baseline_inv_depth_ = std::nan("");
   torch::Tensor upsampling_w_;      // [L, 3] the spectral-upsampling baseline's weights
+  int64_t margin_ = 0;              // data.render_margin_px resolved
   int64_t rank_ = 0, world_ = 1;
   torch::Device device_;
   optics::Material material_;
