@@ -55,11 +55,9 @@ int run(const AppArgs& args) {
   // height values; hsd_bench accuracy's numbers are for that start).
   if (cfg.optics.doe.init == "fisher" && !std::filesystem::exists(cfg.optics.doe.fisher_path)) {
     log::info("hsd_bench: no Fisher design at " + cfg.optics.doe.fisher_path + ": benchmarking with the Fresnel start");
-    cfg = load_config(config, [&] {
-      auto o = args.overrides;
-      o.push_back("optics.doe.init=\"fresnel\"");
-      return o;
-    }());
+    std::vector<std::string> o = args.overrides;
+    o.push_back("optics.doe.init=\"fresnel\"");
+    cfg = load_config(config, o);
   }
   setup_threads(args.integer("--threads", cfg.threads), !json);
   bench::BenchOutput out;

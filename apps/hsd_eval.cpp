@@ -70,10 +70,8 @@ int run(const AppArgs& args) {
     const torch::Tensor h = optics::load_height_file(doe, cfg.optics.doe_samples, cfg.optics.doe_pitch_m);
     auto net = [&](const torch::Tensor& x) { return model::run_reconstructor(m, x); };
     const double inv = m.hasattr("baseline_inv_depth_per_m") ? m.attr("baseline_inv_depth_per_m").toDouble() : std::nan("");
-    const optics::PsfProvider fixed = cfg.optics.psf_source == "all_in_focus"
-                                          ? optics::fixed_psf_provider(optics::all_in_focus_psf(cfg.optics, material, torch::kCPU))
-                                          : nullptr;
-    r = train::evaluate(sim, sensor, h, net, cfg, split, args.out_dir, inv, fixed);
+    r = train::evaluate(sim, sensor, h, net, cfg, split, args.out_dir, inv,
+                        optics::psf_source_provider(cfg.optics, material, torch::kCPU));
   }
   write_resolved_config(cfg, args.out_dir);
   char buf[400];

@@ -43,6 +43,8 @@ class HsdNetImpl : public torch::nn::Module {
   // image [B, 3, H, W] (linear sensor RGB) -> cube and depth.
   NetOutput forward(const torch::Tensor& image);
   const NetOptions& options() const { return opt_; }
+  // The residual's spectral-upsampling weights [L, C] (a buffer).
+  const torch::Tensor& upsampling_weights() const { return weights_; }
   // Data-parallel training: batch statistics over all replicas (nullptr: this process's batch).
   void set_replica_group(const std::shared_ptr<ReplicaGroup>& group);
 

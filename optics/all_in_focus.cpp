@@ -35,4 +35,19 @@ PsfProvider fixed_psf_provider(const torch::Tensor& psf) {
   };
 }
 
+PsfProvider psf_source_provider(const OpticsConfig& cfg, const Material& material, torch::Device device) {
+  if (cfg.psf_source == "all_in_focus") return fixed_psf_provider(all_in_focus_psf(cfg, material, device));
+  return nullptr;
+}
+
+torch::Tensor imaging_psf_stack(const PsfSimulator& sim, const torch::Tensor& height_m, const PsfProvider& provider) {
+  torch::NoGradGuard no_grad;
+  const torch::Tensor h = height_m.detach();
+  if (!provider) return sim.compute(h).psf;
+  std::vector<int64_t> layers(sim.spec().depths_m.size()), bands(sim.spec().wavelengths_m.size());
+  for (size_t i = 0; i < layers.size(); ++i) layers[i] = int64_t(i);
+  for (size_t i = 0; i < bands.size(); ++i) bands[i] = int64_t(i);
+  return provider(h, layers, bands);
+}
+
 }  // namespace hsd::optics

@@ -15,6 +15,7 @@
 #include "data/image_io.h"
 #include "data/manifest.h"
 #include "data/preview.h"
+#include "optics/all_in_focus.h"
 #include "optics/psf_atlas.h"
 #include "optics/spectrum.h"
 #include "model/spectral_upsampling.h"
@@ -181,13 +182,8 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
           a.baseline_constant_depth_mae_m += m.baseline_constant_depth_mae_m / n;
   }
   a.colorchecker_rmse = cc_count > 0 ? cc_sum / double(cc_count) : -1.0;
-  {
-    std::vector<int64_t> layers(psf.spec().depths_m.size()), bands(psf.spec().wavelengths_m.size());
-    for (size_t i = 0; i < layers.size(); ++i) layers[i] = int64_t(i);
-    for (size_t i = 0; i < bands.size(); ++i) bands[i] = int64_t(i);
-    const torch::Tensor atlas = fixed_psf ? fixed_psf(h, layers, bands) : psf.compute(h).psf;
-    optics::write_psf_atlas(out_dir + "/psf_atlas.png", atlas.cpu(), psf.spec().wavelengths_m, psf.spec().depths_m);
-  }
+  optics::write_psf_atlas(out_dir + "/psf_atlas.png", optics::imaging_psf_stack(psf, h, fixed_psf).cpu(),
+                          psf.spec().wavelengths_m, psf.spec().depths_m);
   // metrics.json (CONTRACT.md keys) and report.md.
   auto row = [](const SceneMetrics& m) {
     Json j{{"file", m.file}, {"hs_psnr_db", m.hs_psnr_db}, {"hs_ssim", m.hs_ssim}, {"lum_psnr_db", m.lum_psnr_db},

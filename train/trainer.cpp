@@ -103,10 +103,9 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
     torch::manual_seed(int64_t(cfg.seed));
     const torch::Tensor w = model::spectral_upsampling_weights(sensor_.omega.cpu());
     net_ = model::HsdNet(net_options(cfg), w);
-    upsampling_w_ = w.to(torch::kFloat32).to(device_);
   }
-  if (cfg.optics.psf_source == "all_in_focus") {
-    fixed_psf_ = optics::fixed_psf_provider(optics::all_in_focus_psf(cfg.optics, material_, device_));
+  fixed_psf_ = optics::psf_source_provider(cfg.optics, material_, device_);
+  if (fixed_psf_) {
     if (!cfg.train.freeze_doe) log::info("optics.psf_source = \"all_in_focus\": the control; the DOE is not used and only the network is trained");
   }
   doe_trained_ = !cfg.train.freeze_doe && !fixed_psf_;
@@ -231,15 +230,7 @@ torch::Tensor Trainer::centre(const torch::Tensor& t) const {
   return t.narrow(2, m, S).narrow(3, m, S);
 }
 
-torch::Tensor Trainer::psf_stack() const {
-  torch::NoGradGuard no_grad;
-  const torch::Tensor h = doe_.height().detach();
-  if (!fixed_psf_) return psf_->compute(h).psf;
-  std::vector<int64_t> layers(psf_->spec().depths_m.size()), bands(psf_->spec().wavelengths_m.size());
-  for (size_t i = 0; i < layers.size(); ++i) layers[i] = int64_t(i);
-  for (size_t i = 0; i < bands.size(); ++i) bands[i] = int64_t(i);
-  return fixed_psf_(h, layers, bands);
-}
+torch::Tensor Trainer::psf_stack() const { return optics::imaging_psf_stack(*psf_, doe_.height(), fixed_psf_); }
 
 Batch Trainer::train_batch(int64_t step) const {
   if (!sampler_) throw InputError("trainer: attach_data() first");
@@ -322,7 +313,7 @@ ValStats Trainer::validate() {
                                 optics::LeaveOut(), fixed_psf_);
     const torch::Tensor I = centre(Iw), Z = centre(Zw), J = centre(img.image);
     const model::NetOutput out = net_->forward(J);
-    se_up += (model::spectral_upsample(upsampling_w_, J) - I).pow(2).sum().item<double>();
+    se_up += (model::spectral_upsample(net_->upsampling_weights(), J) - I).pow(2).sum().item<double>();
     const torch::Tensor Zc = constant_depth_map(Z, c_inv);
     abs_c += (Zc - Z).abs().sum().item<double>();
     se_c += (Zc - Z).pow(2).sum().item<double>();

@@ -123,7 +123,6 @@ class Trainer {
   optics::PsfProvider fixed_psf_;   // optics.psf_source = "all_in_focus": the control's PSFs
   bool doe_trained_ = true;         // false when frozen (train.freeze_doe) or unused (a fixed PSF source)
   double baseline_inv_depth_ = std::nan("");
-  torch::Tensor upsampling_w_;      // [L, 3] the spectral-upsampling baseline's weights
   int64_t margin_ = 0;              // data.render_margin_px resolved
   int64_t rank_ = 0, world_ = 1;
   torch::Device device_;
