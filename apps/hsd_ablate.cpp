@@ -8,6 +8,7 @@
 // (mean ± standard deviation over seeds beside the baselines, and pairwise
 // differences marked where they exceed two standard errors), DIR/ablation.csv
 // and DIR/error_vs_time.png (validation loss against wall-clock time, all arms).
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cmath>
@@ -104,8 +105,11 @@ int run(const AppArgs& args) {
       char* end = nullptr;
       const long long v = std::strtoll(tok.c_str(), &end, 10);
       if (tok.empty() || *end != '\0' || v < 0) input_error("--seeds", "expected comma-separated non-negative integers, got \"" + tok + "\"");
+      if (std::find(seeds.begin(), seeds.end(), v) != seeds.end()) input_error("--seeds", "seed " + tok + " given twice");
       seeds.push_back(v);
     }
+    if (seeds.empty() || args.option("--seeds", "x").back() == ',')
+      input_error("--seeds", "expected comma-separated non-negative integers, got \"" + args.option("--seeds", "") + "\"");
   }
   make_dirs(args.out_dir);
   const std::string bin = fs::canonical("/proc/self/exe").parent_path().string();
@@ -153,11 +157,14 @@ int run(const AppArgs& args) {
       run_or_fail(command("hsd_train", with({"--out", dir + "/run"})), "hsd_train (" + tag + ")");
       run_or_fail(command("hsd_eval", with({"--checkpoint", dir + "/run/checkpoints/last.pt", "--out", dir + "/eval"})),
                   "hsd_eval (" + tag + ")");
-      const Json m = Json::parse(read_text_file(dir + "/eval/metrics.json"));
-      for (const auto& k : keys)
-        if (m.contains(k)) results[arms[a].name][k].push_back(m.at(k).get<double>());
-      for (const auto& k : base_keys)
-        if (m.contains(k)) results[arms[a].name][k].push_back(m.at(k).get<double>());
+      const Json m = read_json_file(dir + "/eval/metrics.json");
+      for (const auto* ks : {&keys, &base_keys})
+        for (const auto& k : *ks) {
+          if (!m.contains(k)) continue;
+          if (!m.at(k).is_number())  // metrics.json writes a non-finite metric as null
+            throw NumericalError("arm " + tag + ": " + k + " is not a finite number in " + dir + "/eval/metrics.json");
+          results[arms[a].name][k].push_back(m.at(k).get<double>());
+        }
       const auto c = val_curve(dir + "/run/metrics.csv");
       train::Series s{arms[a].name + (seeds.size() > 1 ? " s" + std::to_string(seed) : ""), {}, {}, colours[a]};
       for (const auto& [t, v] : c) s.x.push_back(t), s.y.push_back(v);
@@ -241,7 +248,7 @@ int run(const AppArgs& args) {
       md += "\n";
     }
   }
-  const Json crlb = Json::parse(read_text_file(fisher_dir + "/crlb.json"));
+  const Json crlb = read_json_file(fisher_dir + "/crlb.json");
   std::snprintf(buf, sizeof buf, "\nAggregated CRLB (hsd_fisher): fresnel %.4g, spiral %.4g, fisher %.4g.\n",
                 crlb["fresnel"]["aggregate"].get<double>(), crlb["spiral"]["aggregate"].get<double>(),
                 crlb["fisher"]["aggregate"].get<double>());

@@ -49,18 +49,20 @@ int run(const AppArgs& args) {
   const std::string split = args.option("--split", "test");
   if (split != "train" && split != "val" && split != "test" && split != "all")
     input_error("--split", "expected train, val, test or all, got \"" + split + "\"");
+  make_dirs(args.out_dir);
+  check_output_paths({args.out_dir + "/metrics.json", args.out_dir + "/report.md", args.out_dir + "/config.json"});
   train::EvalResult r;
   if (!ckpt.empty()) {
-    if (!std::filesystem::exists(ckpt)) input_error(ckpt, "no such checkpoint (--checkpoint)");
+    if (!std::filesystem::is_regular_file(ckpt)) input_error(ckpt, "no such checkpoint file (--checkpoint)");
     setup_threads(cfg.threads);
     train::Trainer trainer(cfg);
     trainer.load_checkpoint(ckpt);
     r = train::evaluate(trainer, cfg, split, args.out_dir);
   } else {
     // An exported model: the DOE it expects travels beside it (doe_height.pt), or --doe.
+    torch::jit::Module m = model::load_reconstructor(model_path);  // the model first: it is what the user named
     const std::string doe = args.option("--doe", (std::filesystem::path(model_path).parent_path() / "doe_height.pt").string());
     if (!std::filesystem::exists(doe)) input_error(doe, "no DOE height file for the model (hsd_export writes doe_height.pt; or --doe PATH)");
-    torch::jit::Module m = model::load_reconstructor(model_path);
     if (m.attr("wavelengths_m").toTensor().numel() != int64_t(cfg.optics.wavelengths_nm.size()))
       input_error(model_path, "its wavelengths_m do not match optics.wavelengths_nm of the config");
     setup_threads(cfg.threads);
@@ -69,7 +71,13 @@ int run(const AppArgs& args) {
     const optics::SensorModel sensor = optics::make_sensor_model(cfg.sensor, sim.spec(), cfg.optics.band_width_m());
     const torch::Tensor h = optics::load_height_file(doe, cfg.optics.doe_samples, cfg.optics.doe_pitch_m);
     auto net = [&](const torch::Tensor& x) { return model::run_reconstructor(m, x); };
-    const double inv = m.hasattr("baseline_inv_depth_per_m") ? m.attr("baseline_inv_depth_per_m").toDouble() : std::nan("");
+    double inv = std::nan("");
+    if (m.hasattr("baseline_inv_depth_per_m")) {
+      const c10::IValue v = m.attr("baseline_inv_depth_per_m");
+      if (!v.isDouble() || !(v.toDouble() > 0) || !std::isfinite(v.toDouble()))
+        input_error(model_path, "attribute baseline_inv_depth_per_m must be a finite positive number");
+      inv = v.toDouble();
+    }
     r = train::evaluate(sim, sensor, h, net, cfg, split, args.out_dir, inv,
                         optics::psf_source_provider(cfg.optics, material, torch::kCPU));
   }

@@ -47,8 +47,16 @@ int run(const AppArgs& args) {
   in.baseline_m = args.number("--baseline-m", 0.0);
   in.doffs_px = args.number("--doffs-px", 0.0);
   in.scale = args.number("--scale", 1.0);
-  if (in.focal_px < 0.0) input_error("--focal-px", "must be > 0");
-  if (in.focal_px > 0.0 && !(in.baseline_m > 0.0)) input_error("--baseline-m", "must be > 0 with --focal-px");
+  // Calibrated mapping: all three flags or none (a 0 is not "unset").
+  const bool calibrated = args.has("--focal-px") || args.has("--baseline-m") || args.has("--doffs-px");
+  if (calibrated) {
+    if (!args.has("--focal-px") || !args.has("--baseline-m"))
+      input_error(args.has("--focal-px") ? "--baseline-m" : "--focal-px", "required with the calibrated mapping (--focal-px F --baseline-m B [--doffs-px D])");
+    if (!(in.focal_px > 0.0)) input_error("--focal-px", "must be > 0, got " + args.option("--focal-px", ""));
+    if (!(in.baseline_m > 0.0)) input_error("--baseline-m", "must be > 0, got " + args.option("--baseline-m", ""));
+    if (args.has("--near-m") || args.has("--far-m"))
+      input_error("--near-m/--far-m", "not used with the calibrated mapping (--focal-px); give one or the other");
+  }
   const std::string name = args.option("--name", std::filesystem::path(in.rgb_path).stem().string());
   if (name.empty() || name.find('/') != std::string::npos || name.find("..") != std::string::npos)
     input_error("--name", "must be a plain file stem (no '/', no '..')");

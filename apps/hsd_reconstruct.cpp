@@ -39,9 +39,12 @@ const char* kUsage =
 torch::Tensor read_input(const std::string& path) {
   if (!std::filesystem::exists(path)) input_error(path, "no such file (--input)");
   const std::string ext = std::filesystem::path(path).extension().string();
-  if (ext == ".exr" || ext == ".EXR") return data::read_channels_exr(path, {"R", "G", "B"});
-  cv::Mat m = cv::imread(path, cv::IMREAD_UNCHANGED);
-  if (m.empty()) input_error(path, "not a readable image (expected an OpenEXR with R, G, B or a PNG)");
+  if (ext == ".exr" || ext == ".EXR") {
+    torch::Tensor t = data::read_channels_exr(path, {"R", "G", "B"});
+    check_finite_input(t, path, "the image (channel, row, column)");
+    return t;
+  }
+  cv::Mat m = data::read_image(path, cv::IMREAD_UNCHANGED, "--input: an OpenEXR with R, G, B or a PNG");
   if (m.channels() != 3) input_error(path, "has " + std::to_string(m.channels()) + " channels; a colour (3-channel) image is needed");
   if (m.depth() != CV_8U && m.depth() != CV_16U) input_error(path, "must be 8- or 16-bit");
   cv::cvtColor(m, m, cv::COLOR_BGR2RGB);
@@ -71,6 +74,8 @@ int run(const AppArgs& args) {
   // Large frames: give freed memory back above 64 MiB instead of keeping up to
   // 1 GiB for reuse (the training apps' setting), so the peak stays bounded.
   keep_freed_memory(64);
+  const std::string& o = args.out_dir;
+  check_output_paths({o + "/hs.exr", o + "/depth.exr", o + "/depth.png", o + "/hs_srgb.png"});
   torch::jit::Module m = model::load_reconstructor(model_path);
   model::set_reconstructor_precision(m, precision == "bfloat16" ? torch::kBFloat16 : torch::kFloat32);
   const torch::Tensor wl = m.attr("wavelengths_m").toTensor(), range = m.attr("depth_range_m").toTensor();
@@ -88,6 +93,8 @@ int run(const AppArgs& args) {
     if (done % 8 == 0) release_freed_memory();  // the tiles' temporaries, so the heap does not creep
   }, context);
   if (progress) progress->finish();
+  check_finite(hs, "the model's cube for " + input + " (nothing written)");
+  check_finite(depth, "the model's depth map for " + input + " (nothing written)");
   image = torch::Tensor();  // from here on only the outputs are held
   std::vector<double> wavelengths(wl.data_ptr<double>(), wl.data_ptr<double>() + wl.numel());
   std::vector<std::string> names;

@@ -71,6 +71,12 @@ int run(const AppArgs& args) {
   const bool resume = args.has("--resume");
   if (resume && !std::filesystem::exists(args.out_dir + "/checkpoints/last.pt"))
     input_error(args.out_dir + "/checkpoints/last.pt", "no checkpoint to resume from (--resume)");
+  if (env.rank == 0) {  // the outputs are checked before any data is made or loaded
+    make_dirs(args.out_dir);
+    const std::string& o = args.out_dir;
+    check_output_paths({o + "/metrics.csv", o + "/config.json", o + "/curves.png", o + "/val_psnr.png",
+                        o + "/val_depth.png", o + "/val/x", o + "/checkpoints/last.pt"});
+  }
   if (env.rank != 0) log::set_quiet(true);  // rank 0 reports; the others only warn
   // Ranks sharing a host share its cores.
   const int cores = int(std::max(1u, std::thread::hardware_concurrency()));
@@ -85,6 +91,7 @@ int run(const AppArgs& args) {
     check_same_config(cfg, resume, *group);
   }
   train::Trainer trainer(cfg, group);
+  if (resume) trainer.check_resume(args.out_dir);  // before the data: a bad checkpoint or metrics.csv is found first
   trainer.attach_data();
   if (trainer.writes_outputs()) {
     make_dirs(args.out_dir);

@@ -54,6 +54,11 @@ AppArgs parse_args(const AppSpec& spec, int argc, char** argv) {
   auto is_switch = [&](const std::string& f) {
     return std::find(spec.switch_flags.begin(), spec.switch_flags.end(), f) != spec.switch_flags.end();
   };
+  std::map<std::string, bool> seen;
+  auto once = [&](const std::string& f) {
+    if (seen[f]) input_error(f, "given twice (each flag but --set takes one value)");
+    seen[f] = true;
+  };
   for (int i = 1; i < argc; ++i) {
     std::string f = argv[i];
     std::string value;
@@ -74,19 +79,27 @@ AppArgs parse_args(const AppSpec& spec, int argc, char** argv) {
     if (f == "--help" || f == "-h") {
       a.switches["--help"] = true;
     } else if (f == "--config") {
+      once(f);
       a.config_path = next();
     } else if (f == "--set") {
       a.overrides.push_back(next());
     } else if (f == "--out") {
+      once(f);
       a.out_dir = next();
     } else if (takes_value(f)) {
+      once(f);
       a.options[f] = next();
     } else if (is_switch(f)) {
+      if (inline_value) input_error(f, "takes no value (got \"" + value + "\")");
+      once(f);
       a.switches[f] = true;
     } else if (f.rfind("-", 0) == 0) {
       input_error(f, "unknown flag (see " + spec.name + " --help)");
-    } else {
+    } else if (int(a.positional.size()) < spec.max_positional) {
       a.positional.push_back(f);
+    } else {
+      input_error(f, a.positional.empty() ? "unexpected argument (every value follows its flag: --set key=VALUE, one --set per value; see " + spec.name + " --help)"
+                                          : "unexpected extra argument (see " + spec.name + " --help)");
     }
   }
   if (a.switches.count("--help")) return a;
@@ -114,6 +127,29 @@ void release_freed_memory() {
 #endif
 }
 
+namespace {
+
+// One line, whatever a library appends: LibTorch's "Exception raised from ..."
+// and its backtrace are cut, other line breaks become "; ".
+std::string one_line(std::string m) {
+  const auto raised = m.find("Exception raised from");
+  if (raised != std::string::npos) m.erase(raised);
+  std::string out;
+  bool pending = false;
+  for (char c : m) {
+    if (c == '\n' || c == '\r') {
+      pending = !out.empty();
+      continue;
+    }
+    if (pending) out += "; ", pending = false;
+    out += c;
+  }
+  while (!out.empty() && (out.back() == ' ' || out.back() == ';')) out.pop_back();
+  return out;
+}
+
+}  // namespace
+
 int run_app(const AppSpec& spec, int argc, char** argv, const std::function<int(const AppArgs&)>& body) {
   use_passive_openmp(argv);
   keep_freed_memory();
@@ -125,19 +161,19 @@ int run_app(const AppSpec& spec, int argc, char** argv, const std::function<int(
     }
     return body(args);
   } catch (const InputError& e) {
-    std::fprintf(stderr, "%s: error: %s\n", spec.name.c_str(), e.what());
+    std::fprintf(stderr, "%s: error: %s\n", spec.name.c_str(), one_line(e.what()).c_str());
     return 2;
   } catch (const NumericalError& e) {
-    std::fprintf(stderr, "%s: numerical error: %s\n", spec.name.c_str(), e.what());
+    std::fprintf(stderr, "%s: numerical error: %s\n", spec.name.c_str(), one_line(e.what()).c_str());
     return 3;
   } catch (const DistributedError& e) {
-    std::fprintf(stderr, "%s: distributed training failed: %s\n", spec.name.c_str(), e.what());
+    std::fprintf(stderr, "%s: distributed training failed: %s\n", spec.name.c_str(), one_line(e.what()).c_str());
     return 4;
   } catch (const c10::Error& e) {
-    std::fprintf(stderr, "%s: internal error (torch): %s\n", spec.name.c_str(), e.what_without_backtrace());
+    std::fprintf(stderr, "%s: internal error (torch): %s\n", spec.name.c_str(), one_line(e.what_without_backtrace()).c_str());
     return 1;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "%s: internal error: %s\n", spec.name.c_str(), e.what());
+    std::fprintf(stderr, "%s: internal error: %s\n", spec.name.c_str(), one_line(e.what()).c_str());
     return 1;
   }
 }

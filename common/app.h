@@ -34,9 +34,12 @@ struct AppSpec {
   std::vector<std::string> switch_flags;      // app-specific flags without a value (e.g. "--json")
   bool needs_config = true;
   bool needs_out = true;
+  int max_positional = 0;                     // arguments without a flag (hsd_bench NAME); more are refused
 };
 
-// Parses argv per the contract; InputError for unknown flags or missing values.
+// Parses argv per the contract; InputError (exit 2) for unknown flags, missing
+// values, a flag given twice (other than --set) and stray arguments: nothing
+// on the command line is ignored.
 AppArgs parse_args(const AppSpec& spec, int argc, char** argv);
 
 // LibTorch's OpenMP workers spin-wait after each parallel region while

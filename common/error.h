@@ -34,4 +34,12 @@ struct DistributedError : std::runtime_error {
 // for per-step checks (one reduction); no-op for non-floating tensors.
 void check_finite(const at::Tensor& t, const std::string& where);
 
+// "" if t is all finite, else where the first NaN/Inf sits (row-major), e.g.
+// "NaN at [0, 2, 5, 7] (3 of 1200 values)"; for images [C, H, W] read as
+// channel, row, column.
+std::string first_nonfinite(const at::Tensor& t);
+
+// For data a user gave: InputError "<file>: <what> holds NaN at [...]" (exit 2).
+void check_finite_input(const at::Tensor& t, const std::string& file, const std::string& what);
+
 }  // namespace hsd

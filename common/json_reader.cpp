@@ -1,8 +1,11 @@
 #include "common/json_reader.h"
 
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 
 #include "common/error.h"
 
@@ -10,6 +13,24 @@ namespace hsd {
 namespace fs = std::filesystem;
 
 namespace {
+
+// Deeper documents are refused at parse time: a config is a few levels deep,
+// and nlohmann copies and merges recursively, so a document nested 10^5 levels
+// would overflow the stack.
+constexpr int kMaxJsonDepth = 64;
+
+struct TooDeep {};
+
+// Parses text; throws TooDeep beyond kMaxJsonDepth and nlohmann's exceptions
+// (parse_error for bad syntax or invalid UTF-8, out_of_range for numbers no
+// double holds, e.g. 1e400).
+Json parse_bounded(const std::string& text) {
+  Json::parser_callback_t cb = [](int depth, Json::parse_event_t, Json&) {
+    if (depth > kMaxJsonDepth) throw TooDeep{};
+    return true;
+  };
+  return Json::parse(text, cb);
+}
 
 void deep_merge(Json& base, const Json& over) {
   if (!base.is_object() || !over.is_object()) {
@@ -31,14 +52,7 @@ Json load_rec(const fs::path& path, std::vector<fs::path>& chain) {
   for (const auto& p : chain)
     if (p == canon) input_error(path.string(), "\"extends\" forms a cycle");
   chain.push_back(canon);
-  std::ifstream f(path);
-  if (!f) input_error(path.string(), "cannot read config file");
-  Json j;
-  try {
-    j = Json::parse(f);
-  } catch (const Json::parse_error& e) {
-    input_error(path.string(), std::string("invalid JSON (") + e.what() + ")");
-  }
+  Json j = read_json_file(path.string());
   if (!j.is_object()) input_error(path.string(), "a config must be a JSON object");
   if (j.contains("extends")) {
     if (!j["extends"].is_string()) input_error(path.string() + ": extends", "must be a file name");
@@ -63,6 +77,26 @@ std::string type_name(const Json& j) {
 
 }  // namespace
 
+Json parse_json_text(const std::string& text, const std::string& what) {
+  try {
+    return parse_bounded(text);
+  } catch (const TooDeep&) {
+    input_error(what, "JSON nested more than " + std::to_string(kMaxJsonDepth) + " levels deep");
+  } catch (const Json::out_of_range& e) {
+    input_error(what, std::string("a number out of the range of a double (") + e.what() + ")");
+  } catch (const Json::exception& e) {
+    input_error(what, std::string("invalid JSON (") + e.what() + ")");
+  }
+}
+
+Json read_json_file(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) input_error(path, std::string("cannot read (") + std::strerror(errno) + ")");
+  const std::string text((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  if (f.bad()) input_error(path, std::string("cannot read (") + std::strerror(errno) + ")");
+  return parse_json_text(text, path);
+}
+
 Json load_json_with_extends(const std::string& path) {
   std::vector<fs::path> chain;
   return load_rec(fs::path(path), chain);
@@ -76,9 +110,18 @@ void apply_override(Json& root, const std::string& assignment) {
   const std::string text = assignment.substr(eq + 1);
   Json value;
   try {
-    value = Json::parse(text);
+    value = parse_bounded(text);
+  } catch (const TooDeep&) {
+    input_error("--set " + key, "value nested more than " + std::to_string(kMaxJsonDepth) + " levels deep");
+  } catch (const Json::out_of_range&) {
+    input_error("--set " + key, "number out of the range of a double: " + text);
   } catch (const Json::parse_error&) {
     value = text;  // bare word: a string
+  }
+  try {
+    (void)value.dump();
+  } catch (const Json::type_error&) {
+    input_error("--set " + key, "value is not valid UTF-8 text");
   }
   Json* node = &root;
   size_t start = 0;

@@ -15,6 +15,12 @@ namespace hsd {
 
 using Json = nlohmann::json;
 
+// Every JSON document hsd reads goes through these: nesting is bounded (64
+// levels) and every failure (syntax, invalid UTF-8, a number no double holds,
+// too deep) is an InputError (exit 2) naming `what` (a file or flag).
+Json parse_json_text(const std::string& text, const std::string& what);
+Json read_json_file(const std::string& path);  // also InputError if unreadable
+
 // Reads a JSON file; if it has "extends": "other.json" (path relative to the
 // file), loads that first and deep-merges this file on top (objects merge key
 // by key; arrays and scalars replace). Chains and cycles are handled.

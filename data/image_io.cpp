@@ -1,6 +1,11 @@
 #include "data/image_io.h"
 
 #include <algorithm>
+#include <array>
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
 
 #include <opencv2/imgcodecs.hpp>
 #include <torch/torch.h>
@@ -9,6 +14,51 @@
 #include "common/error.h"
 
 namespace hsd::data {
+
+namespace {
+
+uint32_t big_endian(const unsigned char* p) {
+  return (uint32_t(p[0]) << 24) | (uint32_t(p[1]) << 16) | (uint32_t(p[2]) << 8) | uint32_t(p[3]);
+}
+
+// PNG (ISO/IEC 15948): 8-byte signature, then the IHDR chunk (length 13,
+// width and height big-endian), and the IEND chunk as the file's last 12 bytes.
+void check_png_structure(const std::string& path, std::ifstream& f, const std::array<unsigned char, 8>& sig) {
+  static const unsigned char kSig[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  if (std::memcmp(sig.data(), kSig, 8) != 0) input_error(path, "not a PNG file (bad signature)");
+  unsigned char ihdr[16];
+  if (!f.read(reinterpret_cast<char*>(ihdr), 16) || std::memcmp(ihdr + 4, "IHDR", 4) != 0)
+    input_error(path, "truncated or damaged PNG (no IHDR header)");
+  const uint64_t w = big_endian(ihdr + 8), h = big_endian(ihdr + 12);
+  if (w == 0 || h == 0) input_error(path, "PNG header says " + std::to_string(w) + "x" + std::to_string(h) + " pixels");
+  if (w * h > (uint64_t(1) << 28))
+    input_error(path, "PNG header says " + std::to_string(w) + "x" + std::to_string(h) + " pixels (over 2^28; refused)");
+  f.seekg(-12, std::ios::end);
+  unsigned char tail[12];
+  if (!f.read(reinterpret_cast<char*>(tail), 12) || std::memcmp(tail + 4, "IEND", 4) != 0)
+    input_error(path, "truncated PNG (the file ends before its IEND chunk)");
+}
+
+}  // namespace
+
+cv::Mat read_image(const std::string& path, int flags, const std::string& what) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) input_error(path, "no such file (" + what + ")");
+  if (!std::filesystem::is_regular_file(path, ec)) input_error(path, "not a regular file (" + what + ")");
+  std::ifstream f(path, std::ios::binary);
+  if (!f) input_error(path, std::string("cannot open (") + std::strerror(errno) + ")");
+  std::array<unsigned char, 8> sig{};
+  if (!f.read(reinterpret_cast<char*>(sig.data()), 8)) input_error(path, "not an image (under 8 bytes)");
+  if (sig[0] == 0x89 && sig[1] == 'P') check_png_structure(path, f, sig);
+  cv::Mat m;
+  try {
+    m = cv::imread(path, flags);
+  } catch (const cv::Exception& e) {
+    input_error(path, "cannot be decoded as an image (OpenCV: " + std::string(e.err) + ")");
+  }
+  if (m.empty()) input_error(path, "cannot be decoded as an image (" + what + ")");
+  return m;
+}
 
 torch::Tensor srgb_to_linear(const torch::Tensor& v) {
   // In bands of rows (dim -2) so a large frame makes no full-size temporaries.

@@ -21,12 +21,7 @@ bool has_manifest(const std::string& dir) { return std::filesystem::exists(dir +
 Manifest read_manifest(const std::string& dir) {
   const std::string path = dir + "/manifest.json";
   if (!std::filesystem::exists(path)) input_error(path, "no manifest.json in the dataset folder (make one with hsd_scenes)");
-  Json j;
-  try {
-    j = Json::parse(read_text_file(path));
-  } catch (const Json::exception& e) {
-    input_error(path, std::string("not valid JSON (") + e.what() + ")");
-  }
+  const Json j = read_json_file(path);
   if (!j.is_object() || !j.contains("scenes") || !j["scenes"].is_array())
     input_error(path, "expected an object with a \"scenes\" array");
   Manifest m;

@@ -36,12 +36,8 @@ torch::Tensor lift_srgb_to_reflectance(const torch::Tensor& linear_srgb, const R
 
 SpectralScene import_rgbd(const RgbdImport& in, const ReflectanceLibrary& lib, const std::vector<double>& wavelengths_m,
                           double band_width_m, std::string* notes) {
-  if (!std::filesystem::exists(in.rgb_path)) input_error(in.rgb_path, "no such file (--rgb)");
-  if (!std::filesystem::exists(in.disparity_path)) input_error(in.disparity_path, "no such file (--disparity)");
-  cv::Mat bgr = cv::imread(in.rgb_path, cv::IMREAD_COLOR);
-  if (bgr.empty()) input_error(in.rgb_path, "not a readable image");
-  cv::Mat disp = cv::imread(in.disparity_path, cv::IMREAD_UNCHANGED);
-  if (disp.empty()) input_error(in.disparity_path, "not a readable image");
+  cv::Mat bgr = read_image(in.rgb_path, cv::IMREAD_COLOR, "--rgb");
+  cv::Mat disp = read_image(in.disparity_path, cv::IMREAD_UNCHANGED, "--disparity");
   if (disp.channels() != 1) input_error(in.disparity_path, "disparity must be a single-channel (grey) image");
   if (disp.depth() != CV_8U && disp.depth() != CV_16U) input_error(in.disparity_path, "disparity must be 8- or 16-bit");
   if (bgr.size() != disp.size())
@@ -66,8 +62,12 @@ SpectralScene import_rgbd(const RgbdImport& in, const ReflectanceLibrary& lib, c
   s.spectral = lift_srgb_to_reflectance(v, lib, wavelengths_m, band_width_m);
   const torch::Tensor d = torch::from_blob(d32.data, {H, W}, torch::kFloat32).clone().to(torch::kFloat64);
   torch::Tensor known = d > 0;
-  if (in.focal_px > 0.0) known = known & (d + in.doffs_px * in.scale > 0);  // a bad calibration: no depth there
   if (!known.any().item<bool>()) input_error(in.disparity_path, "has no known disparity (all 0)");
+  if (in.focal_px > 0.0) {
+    known = known & (d + in.doffs_px * in.scale > 0);  // a bad calibration: no depth there
+    if (!known.any().item<bool>())
+      input_error("--doffs-px", "d + doffs <= 0 at every known pixel of " + in.disparity_path + " (no positive depth; check the calibration)");
+  }
   torch::Tensor z;
   char buf[320];
   if (in.focal_px > 0.0) {

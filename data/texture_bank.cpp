@@ -30,8 +30,7 @@ TextureBank::TextureBank(const std::string& dir, int64_t max_side_px) {
   std::sort(files.begin(), files.end());
   if (files.empty()) input_error("config key data.generator.texture_dir", "\"" + dir + "\" holds no image (.jpg, .png, .tif, .bmp)");
   for (const auto& p : files) {
-    cv::Mat img = cv::imread(p.string(), cv::IMREAD_COLOR | cv::IMREAD_ANYDEPTH);
-    if (img.empty()) input_error(p.string(), "cannot be decoded as an image");
+    cv::Mat img = read_image(p.string(), cv::IMREAD_COLOR | cv::IMREAD_ANYDEPTH, "data.generator.texture_dir");
     if (img.rows < 16 || img.cols < 16) input_error(p.string(), "is smaller than 16 x 16 pixels");
     const double scale = double(max_side_px) / double(std::max(img.rows, img.cols));
     if (scale < 1.0) cv::resize(img, img, cv::Size(), scale, scale, cv::INTER_AREA);

@@ -120,24 +120,87 @@ void set_reconstructor_precision(torch::jit::Module& m, c10::ScalarType dtype) {
   for (const auto& b : m.named_buffers(false)) convert(b.name, b.value);
 }
 
+namespace {
+
+// (hs, depth) from a forward's result, checked against the input x [B, 3, H, W]
+// and the module's L bands; `who` names the model in the error.
+std::pair<torch::Tensor, torch::Tensor> checked_outputs(const c10::IValue& r, const torch::Tensor& x, int64_t L,
+                                                        const std::string& who) {
+  auto bad = [&](const std::string& what) -> std::pair<torch::Tensor, torch::Tensor> {
+    throw InputError(who + ": not an hsd reconstructor: " + what + " (make it with hsd_export)");
+  };
+  if (!r.isTuple() || r.toTupleRef().elements().size() != 2) return bad("forward must return a pair (hs, depth)");
+  const auto& e = r.toTupleRef().elements();
+  if (!e[0].isTensor() || !e[1].isTensor()) return bad("forward must return two tensors");
+  const torch::Tensor hs = e[0].toTensor(), depth = e[1].toTensor();
+  const int64_t B = x.size(0), H = x.size(2), W = x.size(3);
+  auto shape = [](const torch::Tensor& t) { return c10::str(t.sizes()); };
+  if (hs.sizes() != c10::IntArrayRef{B, L, H, W})
+    return bad("its cube is " + shape(hs) + " for an input " + shape(x) + " (expected [" + std::to_string(B) + ", " +
+               std::to_string(L) + ", " + std::to_string(H) + ", " + std::to_string(W) + "])");
+  if (depth.sizes() != c10::IntArrayRef{B, 1, H, W})
+    return bad("its depth map is " + shape(depth) + " for an input " + shape(x));
+  return {hs, depth};
+}
+
+int64_t band_count(const torch::jit::Module& m) { return m.attr("wavelengths_m").toTensor().numel(); }
+
+}  // namespace
+
 torch::jit::Module load_reconstructor(const std::string& path) {
-  if (!std::filesystem::exists(path)) throw InputError(path + ": no such file (an exported reconstructor.pt)");
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) throw InputError(path + ": no such file (an exported reconstructor.pt)");
+  if (!std::filesystem::is_regular_file(path, ec)) throw InputError(path + ": not a file (an exported reconstructor.pt)");
   torch::jit::Module m;
   try {
     m = torch::jit::load(path);
+  } catch (const c10::Error& e) {
+    std::string why = e.what_without_backtrace();
+    why = why.substr(0, why.find('\n'));
+    throw InputError(path + ": not a TorchScript module (" + why.substr(0, 160) + ")");
   } catch (const std::exception& e) {
-    throw InputError(path + ": not a TorchScript module (" + std::string(e.what()).substr(0, 120) + ")");
+    std::string why = e.what();
+    throw InputError(path + ": not a TorchScript module (" + why.substr(0, why.find('\n')).substr(0, 160) + ")");
   }
   if (!m.hasattr("wavelengths_m") || !m.hasattr("depth_range_m") || !m.find_method("forward"))
     throw InputError(path + ": is not an hsd reconstructor (needs forward, wavelengths_m and depth_range_m; make it with hsd_export)");
+  const c10::IValue wl = m.attr("wavelengths_m"), range = m.attr("depth_range_m");
+  if (!wl.isTensor() || wl.toTensor().dim() != 1 || wl.toTensor().numel() < 1 || !first_nonfinite(wl.toTensor()).empty() ||
+      !(wl.toTensor().min().item<double>() > 0))
+    throw InputError(path + ": attribute wavelengths_m must be a 1-D tensor of finite positive wavelengths");
+  if (!range.isTensor() || range.toTensor().numel() != 2 || !first_nonfinite(range.toTensor()).empty() ||
+      !(range.toTensor()[0].item<double>() > 0 && range.toTensor()[1].item<double>() > range.toTensor()[0].item<double>()))
+    throw InputError(path + ": attribute depth_range_m must be two finite depths, near < far");
+  for (const auto& a : m.named_attributes(/*recurse=*/true))
+    if (a.value.isTensor()) {
+      const std::string bad = first_nonfinite(a.value.toTensor());
+      if (!bad.empty()) throw InputError(path + ": tensor " + a.name + " holds " + bad);
+    }
   m.eval();
+  // A probe: 1 x 3 x 32 x 32 zeros must give a cube and a depth map of that size.
+  {
+    torch::NoGradGuard ng;
+    const torch::Tensor probe = torch::zeros({1, 3, 32, 32});
+    c10::IValue r;
+    try {
+      r = m.forward({probe});
+    } catch (const std::exception& e) {
+      std::string why = e.what();
+      throw InputError(path + ": its forward fails on a 1x3x32x32 image (" + why.substr(0, why.find('\n')).substr(0, 160) + ")");
+    }
+    const auto [hs, depth] = checked_outputs(r, probe, band_count(m), path);
+    for (const auto& [t, what] : {std::pair<const torch::Tensor&, const char*>{hs, "cube"}, {depth, "depth map"}}) {
+      const std::string bad = first_nonfinite(t);
+      if (!bad.empty()) throw InputError(path + ": its " + what + " for a black 32x32 image holds " + bad);
+    }
+  }
   return m;
 }
 
 std::pair<torch::Tensor, torch::Tensor> run_reconstructor(torch::jit::Module& m, const torch::Tensor& x) {
   // channels-last: oneDNN's convolutions run about 1.3x faster than in NCHW
-  const auto out = m.forward({x.dim() == 4 ? x.contiguous(at::MemoryFormat::ChannelsLast) : x}).toTuple();
-  return {out->elements()[0].toTensor(), out->elements()[1].toTensor()};
+  const c10::IValue r = m.forward({x.dim() == 4 ? x.contiguous(at::MemoryFormat::ChannelsLast) : x});
+  return checked_outputs(r, x, band_count(m), "the reconstructor");
 }
 
 }  // namespace hsd::model

@@ -73,7 +73,9 @@ TEST_CASE("metrics: PSNR and SSIM over the valid mask ignore the invalid pixels,
   CHECK(train::ssim(pred, truth, 1.0) < 0.7);
   torch::Tensor nan = pred.clone();
   nan[0][0][0] = std::nan("");
-  CHECK(std::isnan(train::psnr_db(nan, truth, 1.0, mask)));
+  CHECK_THROWS_AS(train::psnr_db(nan, truth, 1.0, mask), NumericalError);
+  CHECK_THROWS_AS(train::ssim(truth, nan, 1.0), NumericalError);
+  CHECK_THROWS_WITH(train::psnr_db(nan, truth, 1.0), Catch::Matchers::Contains("NaN at [0, 0, 0]"));
 }
 
 TEST_CASE("baselines: a network that outputs the baselines scores exactly the baselines, which match a hand computation",

@@ -29,7 +29,7 @@ TEST_CASE("export: the TorchScript module reproduces the network, saved, reloade
     const torch::Tensor x = torch::rand({2, 3, 21, 13});  // padded to 24 x 16 inside
     torch::NoGradGuard ng;
     const model::NetOutput ref = net->forward(x);
-    model::ExportMetadata meta{{400e-9, 450e-9, 500e-9, 550e-9, 600e-9, 650e-9}, {{"camera", "test"}}};
+    model::ExportMetadata meta{{400e-9, 450e-9, 500e-9, 550e-9, 600e-9, 650e-9}, {{"camera", "test"}}, {}};
     torch::jit::Module m = model::export_torchscript(net, meta);
     auto check = [&](torch::jit::Module& mod) {
       const auto out = mod.forward({x}).toTuple();
@@ -96,7 +96,7 @@ TEST_CASE("export: bfloat16 inference keeps float32 outputs close to float32", "
   o.bands = 5, o.base_width = 8, o.levels = 2, o.norm = "batch";
   model::HsdNet net(o, torch::rand({5, 3}));
   net->eval();
-  torch::jit::Module m32 = model::export_torchscript(net, {{400e-9, 450e-9, 500e-9, 550e-9, 600e-9}, {}});
+  torch::jit::Module m32 = model::export_torchscript(net, {{400e-9, 450e-9, 500e-9, 550e-9, 600e-9}, {}, {}});
   torch::jit::Module m16 = m32.clone();
   model::set_reconstructor_precision(m32, torch::kFloat32);  // channels-last weights, same values
   model::set_reconstructor_precision(m16, torch::kBFloat16);

@@ -29,9 +29,8 @@ namespace {
 
 std::vector<std::array<int64_t, 4>> read_boxes(const std::string& path, std::vector<std::string>* names) {
   std::vector<std::array<int64_t, 4>> boxes;
-  Json j;
+  const Json j = read_json_file(path);
   try {
-    j = Json::parse(read_text_file(path));
     for (const auto& p : j.at("patches")) {
       const auto b = p.at("box_xyxy");
       boxes.push_back({b[0].get<int64_t>(), b[1].get<int64_t>(), b[2].get<int64_t>(), b[3].get<int64_t>()});
@@ -89,6 +88,12 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
                                                             sc.depth_m.unsqueeze(0), gen, optics::LeaveOut(), fixed_psf);
     const auto out = reconstruct(img.image);
     const torch::Tensor hs = out.first[0].cpu(), dp = out.second[0].cpu();
+    for (const auto& [t, what] : {std::pair<const torch::Tensor&, const char*>{hs, "cube"}, {dp, "depth map"}}) {
+      const std::string bad = first_nonfinite(t);
+      if (!bad.empty())
+        throw NumericalError("the model's " + std::string(what) + " for " + ls.file + " holds " + bad +
+                             " (a damaged or diverged model; no metrics written)");
+    }
     SceneMetrics m;
     m.file = ls.file;
     m.data_range = std::max(1e-12, radiance.max().item<double>());

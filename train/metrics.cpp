@@ -25,19 +25,28 @@ double masked_mean(const torch::Tensor& x, const torch::Tensor& m) {
   if (!(n > 0)) throw InputError("metrics: the mask has no valid pixel");
   return (x * m).sum().item<double>() / n;
 }
+// A metric of a non-finite image is undefined: NumericalError (exit 3) naming
+// the metric, the image and the first bad element, never a number.
+void require_finite(const torch::Tensor& a, const torch::Tensor& b, const char* metric) {
+  for (const auto& [t, which] : {std::pair<const torch::Tensor&, const char*>{a, "first (reconstructed)"}, {b, "second (true)"}}) {
+    const std::string bad = first_nonfinite(t);
+    if (!bad.empty()) throw NumericalError(std::string(metric) + ": the " + which + " image holds " + bad);
+  }
+}
 }  // namespace
 
 double psnr_db(const torch::Tensor& a, const torch::Tensor& b, double data_range, const torch::Tensor& mask) {
   if (a.sizes() != b.sizes()) throw InputError("PSNR: images differ in size");
   if (!(data_range > 0)) throw InputError("PSNR: data range must be > 0");
+  require_finite(a, b, "PSNR");
   const double mse = masked_mean((a.to(torch::kFloat64) - b.to(torch::kFloat64)).pow(2), valid(mask, a));
-  if (!std::isfinite(mse)) return std::nan("");  // NaN in, NaN out: never a best score
   if (mse <= 0) return kPsnrCapDb;
   return std::min(kPsnrCapDb, 10.0 * std::log10(data_range * data_range / mse));
 }
 
 double ssim(const torch::Tensor& a, const torch::Tensor& b, double data_range, const torch::Tensor& mask) {
   if (a.sizes() != b.sizes() || a.dim() != 3) throw InputError("SSIM: needs two [C, H, W] images of one size");
+  require_finite(a, b, "SSIM");
   const int64_t C = a.size(0), win = std::min<int64_t>({11, a.size(1), a.size(2)});
   const double sigma = 1.5;
   torch::Tensor g = torch::arange(win, torch::kFloat64) - double(win - 1) / 2.0;
@@ -71,6 +80,8 @@ torch::Tensor luminance(const torch::Tensor& cube, const torch::Tensor& weights)
 }
 
 DepthErrors depth_errors(const torch::Tensor& pred, const torch::Tensor& truth, const torch::Tensor& mask) {
+  const std::string bad = first_nonfinite(pred);
+  if (!bad.empty()) throw NumericalError("depth errors: the predicted depth map holds " + bad);
   const torch::Tensor e = pred.to(torch::kFloat64) - truth.to(torch::kFloat64);
   const torch::Tensor m = mask.defined() ? (mask > 0.5).to(torch::kFloat64) : torch::ones_like(e);
   const double n = m.sum().item<double>();

@@ -26,7 +26,8 @@ constexpr double kPsnrCapDb = 100.0;
 // undefined (every pixel). PSNR: the MSE over the valid pixels. SSIM: the mean
 // of the SSIM map over the window positions whose whole window is valid (NaN
 // when there is none).
-// NaN in either image gives NaN (never the 100-dB cap).
+// NaN or Inf in either image is a NumericalError naming the first bad pixel
+// (never a number, never the 100-dB cap); so is one in depth_errors' prediction.
 double psnr_db(const torch::Tensor& a, const torch::Tensor& b, double data_range, const torch::Tensor& mask = {});
 double ssim(const torch::Tensor& a, const torch::Tensor& b, double data_range, const torch::Tensor& mask = {});
 

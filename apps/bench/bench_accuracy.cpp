@@ -286,7 +286,7 @@ int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out) {
       if (!backward) lean.psf_crop_tol = std::max(lean.psf_crop_tol, 1e-7);
       torch::Tensor a, b;
       optics::SensorImage info;
-      LeaveOut e{name, what};
+      LeaveOut e{name, what, {}};
       e.seconds_full = time_sim(m, rad, dep, none, &a, nullptr, backward);
       e.seconds_lean = time_sim(m, rad, dep, lean, &b, &info, backward);
       e.left_out = std::to_string(L - int64_t(info.bands.size())) + "/" + std::to_string(L) + " bands, " +

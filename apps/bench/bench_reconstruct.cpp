@@ -28,7 +28,7 @@ int bench_reconstruct(Config cfg, const AppArgs& args, BenchOutput& out) {
   torch::manual_seed(int64_t(cfg.seed));
   model::HsdNet net(o, model::spectral_upsampling_weights(omega));
   net->eval();
-  torch::jit::Module f32 = model::export_torchscript(net, {bands, {}});
+  torch::jit::Module f32 = model::export_torchscript(net, {bands, {}, {}});
   torch::jit::Module bf16 = f32.clone();
   model::set_reconstructor_precision(f32, torch::kFloat32);   // channels-last weights
   model::set_reconstructor_precision(bf16, torch::kBFloat16);
