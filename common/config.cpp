@@ -227,8 +227,29 @@ double OpticsConfig::band_width_m() const {
   return (wavelengths_nm.back() - wavelengths_nm.front()) / double(wavelengths_nm.size() - 1) * 1e-9;
 }
 
+namespace {
+
+// Every string must be valid UTF-8 (the resolved config is written back as
+// JSON): InputError naming the first key whose text is not.
+void check_utf8(const Json& j, const std::string& path) {
+  if (j.is_string()) {
+    try {
+      (void)j.dump();
+    } catch (const Json::type_error&) {
+      input_error("config key " + path, "is not valid UTF-8 text");
+    }
+  } else if (j.is_object()) {
+    for (const auto& it : j.items()) check_utf8(it.value(), path.empty() ? it.key() : path + "." + it.key());
+  } else if (j.is_array()) {
+    for (size_t i = 0; i < j.size(); ++i) check_utf8(j[i], path + "[" + std::to_string(i) + "]");
+  }
+}
+
+}  // namespace
+
 Config parse_config(const Json& resolved) {
   if (!resolved.is_object()) input_error("config", "must be a JSON object");
+  check_utf8(resolved, "");
   JsonReader r(resolved);
   Config c;
   c.resolved = resolved;
@@ -312,11 +333,14 @@ Config parse_config(const Json& resolved) {
       m->fail("norm", "expected \"batch\", \"group\" or \"none\", got \"" + M.norm + "\"");
     M.depth_margin = m->get_number("depth_margin", M.depth_margin);
     if (!(M.depth_margin >= 0.0 && M.depth_margin <= 0.5)) m->fail("depth_margin", "must be in [0, 0.5]");
+    M.head_init = m->get_string("head_init", M.head_init);
+    if (M.head_init != "baselines" && M.head_init != "random")
+      m->fail("head_init", "expected \"baselines\" or \"random\", got \"" + M.head_init + "\"");
   }
   if (auto t = r.optional_child("train")) {
     auto& T = c.train;
     T.steps = t->get_int("steps", T.steps);
-    if (T.steps < 0) t->fail("steps", "must be >= 0");
+    if (T.steps < 1 || T.steps > 100000000) t->fail("steps", "must be in [1, 1e8]");
     T.batch_size = t->get_int("batch_size", T.batch_size);
     if (T.batch_size < 1 || T.batch_size > 4096) t->fail("batch_size", "must be in [1, 4096]");
     T.lr_net = t->get_number("lr_net", T.lr_net);
@@ -356,6 +380,14 @@ Config parse_config(const Json& resolved) {
     D.split_psf = d->get_bool("split_psf", D.split_psf);
   }
   if (auto d = r.optional_child("data")) c.data = parse_data(*d);
+  // The U-Net's bottom must keep a pixel of the patch, and batch norm needs
+  // more than one value per channel there (batch x pixels).
+  const int64_t bottom = c.data.patch_size_px >> c.model.levels;
+  if (bottom < 1 || (c.model.norm == "batch" && c.train.batch_size * bottom * bottom < 2))
+    input_error("config key model.levels", std::to_string(c.model.levels) + " poolings leave " + std::to_string(bottom) +
+                                               " px of a " + std::to_string(c.data.patch_size_px) +
+                                               "-px patch (data.patch_size_px)" +
+                                               (bottom < 1 ? std::string("") : " for a batch of one (batch norm needs 2 values)"));
   r.check_all_used();
   return c;
 }

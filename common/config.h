@@ -114,6 +114,12 @@ struct ModelConfig {
   // its inverse-depth span at each end, so the nearest and farthest targets do
   // not ask for a saturated sigmoid (0 = exactly the range, the paper's form).
   double depth_margin = 0.1;
+  // "baselines": the output heads start at the two trivial answers (cube head
+  // zero, so the cube is the spectral upsampling; depth head constant at the
+  // training split's median inverse depth), so training starts at the
+  // baselines and every step is measured from them. "random": torch's default
+  // initialisation of the heads (the paper's code).
+  std::string head_init = "baselines";
 };
 
 // Joint training of DOE and network (train/trainer.h).

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -199,6 +200,7 @@ void Trainer::attach_data() {
   const double bw = cfg_.optics.band_width_m();
   train_scenes_ = data::load_split(root, "train", bands, bw, cfg_.data.loader_threads);
   baseline_inv_depth_ = median_inverse_depth(train_scenes_);
+  if (cfg_.model.head_init == "baselines") net_->start_at_baselines(baseline_inv_depth_);  // a checkpoint, if resumed, replaces it
   const data::Manifest m = data::read_manifest(root);
   bank_ = std::make_unique<data::IlluminantBank>(cfg_.data.illuminants, bands, bw);
   const int64_t rendered = cfg_.data.patch_size_px + 2 * margin_;
@@ -369,35 +371,62 @@ void Trainer::save_checkpoint(const std::string& path, int64_t next_step) const 
 }
 
 int64_t Trainer::load_checkpoint(const std::string& path) {
+  // Every entry is checked (present, shape, finite) before anything is
+  // replaced: a doctored or damaged checkpoint is exit 2 naming the file and
+  // the entry, never a crash or a NaN model.
   const TensorDict d = load_tensor_dict(path);
   torch::NoGradGuard no_grad;
-  auto copy_into = [&](torch::Tensor& dst, const std::string& key) {
-    const torch::Tensor src = dict_get(d, key, path);
-    if (src.sizes() != dst.sizes())
-      input_error(path, key + " is " + c10::str(src.sizes()) + " but the config builds " + c10::str(dst.sizes()) +
+  auto entry = [&](const std::string& key, c10::IntArrayRef shape) {
+    const torch::Tensor t = dict_get(d, key, path);
+    if (t.sizes() != shape)
+      input_error(path, key + " is " + c10::str(t.sizes()) + " but the config builds " + c10::str(shape) +
                             " (a checkpoint of another config?)");
-    dst.copy_(src.to(dst.device(), dst.scalar_type()));
+    const std::string bad = first_nonfinite(t);
+    if (!bad.empty()) input_error(path, key + " holds " + bad);
+    return t;
   };
-  copy_into(doe_.parameter(), "doe.raw");
-  for (auto& p : net_->named_parameters()) copy_into(p.value(), "net." + p.key());
-  for (auto& b : net_->named_buffers()) copy_into(b.value(), "net." + b.key());
+  auto scalar = [&](const std::string& key) {
+    const torch::Tensor t = dict_get(d, key, path);
+    if (t.numel() != 1) input_error(path, key + " must be one number, is " + c10::str(t.sizes()));
+    const double v = t.to(torch::kFloat64).item<double>();
+    if (!std::isfinite(v)) input_error(path, key + " is not finite");
+    return v;
+  };
+  auto count = [&](const std::string& key) {
+    const double v = scalar(key);
+    if (!(v >= 0 && v == std::floor(v) && v < 9e15)) input_error(path, key + " must be a whole number >= 0, is " + c10::str(v));
+    return int64_t(v);
+  };
+  std::vector<std::pair<torch::Tensor, torch::Tensor>> copies;  // (destination, checked source)
+  copies.emplace_back(doe_.parameter(), entry("doe.raw", doe_.parameter().sizes()));
+  for (auto& p : net_->named_parameters()) copies.emplace_back(p.value(), entry("net." + p.key(), p.value().sizes()));
+  for (auto& b : net_->named_buffers()) copies.emplace_back(b.value(), entry("net." + b.key(), b.value().sizes()));
   auto& groups = opt_->param_groups();
-  auto& state = opt_->state();
-  state.clear();
+  std::vector<std::pair<torch::Tensor, std::unique_ptr<torch::optim::AdamParamState>>> adam;
   for (size_t g = 0; g < groups.size(); ++g)
     for (size_t i = 0; i < groups[g].params().size(); ++i) {
       const std::string k = "adam." + std::to_string(g) + "." + std::to_string(i) + ".";
-      if (!d.count(k + "exp_avg")) continue;
+      if (!d.count(k + "exp_avg") && !d.count(k + "exp_avg_sq") && !d.count(k + "step")) continue;  // no step taken yet
       const torch::Tensor& p = groups[g].params()[i];
-      auto s = std::make_unique<torch::optim::AdamParamState>();
-      s->exp_avg(d.at(k + "exp_avg").to(p.device(), p.scalar_type()).clone());
-      s->exp_avg_sq(d.at(k + "exp_avg_sq").to(p.device(), p.scalar_type()).clone());
-      s->step(d.at(k + "step").item<int64_t>());
-      if (s->exp_avg().sizes() != p.sizes()) input_error(path, k + "exp_avg does not match its parameter");
-      state[c10::guts::to_string(p.unsafeGetTensorImpl())] = std::move(s);
+      auto st = std::make_unique<torch::optim::AdamParamState>();
+      st->exp_avg(entry(k + "exp_avg", p.sizes()).to(p.device(), p.scalar_type()).clone());
+      st->exp_avg_sq(entry(k + "exp_avg_sq", p.sizes()).to(p.device(), p.scalar_type()).clone());
+      if ((st->exp_avg_sq() < 0).any().item<bool>()) input_error(path, k + "exp_avg_sq holds negative values");
+      st->step(count(k + "step"));
+      adam.emplace_back(p, std::move(st));
     }
-  if (d.count("baseline.inv_depth_per_m")) baseline_inv_depth_ = d.at("baseline.inv_depth_per_m").item<double>();
-  const int64_t next = dict_get(d, "step", path).item<int64_t>();
+  double baseline = std::numeric_limits<double>::quiet_NaN();
+  if (d.count("baseline.inv_depth_per_m")) {
+    baseline = scalar("baseline.inv_depth_per_m");
+    if (!(baseline > 0)) input_error(path, "baseline.inv_depth_per_m must be > 0");
+  }
+  const int64_t next = count("step");
+  // All checked: replace the state.
+  for (auto& [dst, src] : copies) dst.copy_(src.to(dst.device(), dst.scalar_type()));
+  auto& state = opt_->state();
+  state.clear();
+  for (auto& [p, st] : adam) state[c10::guts::to_string(p.unsafeGetTensorImpl())] = std::move(st);
+  if (std::isfinite(baseline)) baseline_inv_depth_ = baseline;
   if (group_) {  // every rank read a checkpoint of the same step, then all take rank 0's values
     const auto all = group_->gather(double(next), "the resumed step");
     for (int64_t r = 0; r < world_; ++r)
@@ -450,6 +479,39 @@ void Trainer::write_val_pictures(const std::string& dir, int64_t step) {
                           psf_->spec().wavelengths_m, psf_->spec().depths_m);
 }
 
+const std::vector<std::string>& Trainer::metrics_columns() {
+  static const std::vector<std::string> columns{
+      "step",     "wall_s",         "train_loss",       "val_loss",         "train_hs_l1",
+      "train_depth_l1", "lr_net",   "lr_doe_m",         "val_hs_psnr_db",   "val_depth_rmse_m",
+      "val_depth_mae_m", "val_baseline_hs_psnr_db", "val_baseline_depth_rmse_m", "val_depth_saturated"};
+  return columns;
+}
+
+std::vector<std::vector<std::string>> Trainer::resume_rows(const std::string& csv, int64_t start, double* wall_offset) {
+  const auto& columns = metrics_columns();
+  std::vector<std::vector<std::string>> rows;
+  for (auto c : read_csv_rows(csv)) {
+    // Rows up to the checkpoint's step were written before it; a row of an
+    // earlier hsd (fewer columns) is padded with empty cells.
+    char* end = nullptr;
+    const long long row_step = c.size() > 1 ? std::strtoll(c[0].c_str(), &end, 10) : -1;
+    if (c.size() < 2 || end == c[0].c_str() || *end != '\0' || c.size() > columns.size())
+      input_error(csv, "a row that is not one of hsd_train's (\"" + (c.empty() ? std::string() : c[0]) + "...\"); remove the file to resume without it");
+    if (row_step > start) continue;
+    c.resize(columns.size());
+    rows.push_back(c);
+    if (wall_offset) *wall_offset = std::atof(c[1].c_str());
+  }
+  return rows;
+}
+
+void Trainer::check_resume(const std::string& out_dir) {
+  const std::string ckpt = out_dir + "/checkpoints/last.pt";
+  if (!std::filesystem::is_regular_file(ckpt)) input_error(ckpt, "no checkpoint to resume from (--resume)");
+  const int64_t start = load_checkpoint(ckpt);
+  if (writes_outputs()) resume_rows(out_dir + "/metrics.csv", start, nullptr);
+}
+
 void Trainer::run(const std::string& out_dir, bool resume) {
   const auto& T = cfg_.train;
   const std::string ckpt_dir = out_dir + "/checkpoints", val_dir = out_dir + "/val";
@@ -461,30 +523,15 @@ void Trainer::run(const std::string& out_dir, bool resume) {
   }
   int64_t start = 0;
   // Rows of metrics.csv: kept in memory, the file rewritten atomically.
-  const std::vector<std::string> columns{"step", "wall_s", "train_loss", "val_loss", "train_hs_l1", "train_depth_l1",
-                                         "lr_net", "lr_doe_m", "val_hs_psnr_db", "val_depth_rmse_m", "val_depth_mae_m",
-                                         "val_baseline_hs_psnr_db", "val_baseline_depth_rmse_m", "val_depth_saturated"};
+  const std::vector<std::string>& columns = metrics_columns();
   auto col = [&](const char* name) {
     return size_t(std::find(columns.begin(), columns.end(), std::string(name)) - columns.begin());
   };
   std::vector<std::vector<std::string>> rows;  // cells; empty where not measured
   double wall_offset = 0.0;
   if (resume) {
-    if (!std::filesystem::exists(ckpt)) input_error(ckpt, "no checkpoint to resume from (--resume)");
     start = load_checkpoint(ckpt);
-    if (writer)
-      for (auto c : read_csv_rows(csv)) {
-        // Rows up to the checkpoint's step were written before it; a row of an
-        // earlier hsd (fewer columns) is padded with empty cells.
-        char* end = nullptr;
-        const long long row_step = c.size() > 1 ? std::strtoll(c[0].c_str(), &end, 10) : -1;
-        if (c.size() < 2 || end == c[0].c_str() || *end != '\0' || c.size() > columns.size())
-          input_error(csv, "a row that is not one of hsd_train's (\"" + (c.empty() ? std::string() : c[0]) + "...\"); remove the file to resume without it");
-        if (row_step > start) continue;
-        c.resize(columns.size());
-        rows.push_back(c);
-        wall_offset = std::atof(c[1].c_str());
-      }
+    if (writer) rows = resume_rows(csv, start, &wall_offset);
     log::info("resuming from " + ckpt + " at step " + std::to_string(start));
   }
   auto num = [](const std::string& c) { return c.empty() ? NAN : std::atof(c.c_str()); };

@@ -90,6 +90,11 @@ class Trainer {
   // checkpoints/last.pt, config.json; plus curves.png, val/ pictures). With a
   // group only rank 0 writes; all ranks end together.
   void run(const std::string& out_dir, bool resume);
+  // Before any data is loaded: InputError (exit 2) naming the file if
+  // out_dir's checkpoint or metrics.csv cannot be resumed from.
+  void check_resume(const std::string& out_dir);
+  // metrics.csv's columns, in order (CONTRACT.md, then additions).
+  static const std::vector<std::string>& metrics_columns();
   bool writes_outputs() const { return !group_ || group_->rank() == 0; }
 
   torch::Tensor height() const { return doe_.height().detach(); }
@@ -109,6 +114,9 @@ class Trainer {
   const Batch& val_batch() const { return val_; }
 
  private:
+  // metrics.csv's rows up to step `start` (checked; short rows of an earlier
+  // hsd padded); the last kept row's wall time into *wall_offset.
+  static std::vector<std::vector<std::string>> resume_rows(const std::string& csv, int64_t start, double* wall_offset);
   void write_val_pictures(const std::string& dir, int64_t step);
   // The centre patch_size_px × patch_size_px of [B, C, S', S'] (itself when S' = S).
   torch::Tensor centre(const torch::Tensor& t) const;
