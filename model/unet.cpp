@@ -1,5 +1,8 @@
 #include "model/unet.h"
 
+#include <algorithm>
+#include <cmath>
+
 #include "model/spectral_upsampling.h"
 #include "model/sync_batch_norm.h"
 
@@ -91,6 +94,16 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image) {
   out.depth_m = 1.0 / out.inv_depth;
   out.depth_unit = d;
   return out;
+}
+
+void HsdNetImpl::start_at_baselines(double inv_depth_per_m) {
+  torch::NoGradGuard no_grad;
+  head_hs_->weight.zero_();
+  head_hs_->bias.zero_();
+  head_depth_->weight.zero_();
+  const double inv_far = 1.0 / opt_.depth_max_m, inv_near = 1.0 / opt_.depth_min_m;
+  const double u = std::clamp((inv_depth_per_m - inv_far) / (inv_near - inv_far), 1e-3, 1.0 - 1e-3);
+  head_depth_->bias.fill_(std::log(u / (1.0 - u)));
 }
 
 }  // namespace hsd::model

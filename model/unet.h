@@ -45,6 +45,11 @@ class HsdNetImpl : public torch::nn::Module {
   const NetOptions& options() const { return opt_; }
   // The residual's spectral-upsampling weights [L, C] (a buffer).
   const torch::Tensor& upsampling_weights() const { return weights_; }
+  // Residual learning from the trivial answers: zeroes the cube head (the cube
+  // is then the spectral upsampling alone) and the depth head's weights, and
+  // sets its bias so every pixel's depth is 1 / inv_depth_per_m (clamped into
+  // the head's range). Gradients reach the decoders from the first update on.
+  void start_at_baselines(double inv_depth_per_m);
   // Data-parallel training: batch statistics over all replicas (nullptr: this process's batch).
   void set_replica_group(const std::shared_ptr<ReplicaGroup>& group);
 
