@@ -15,6 +15,7 @@
 #include "data/synthetic_dataset.h"
 #include "helpers.h"
 #include "model/spectral_upsampling.h"
+#include "model/unet.h"
 #include "optics/all_in_focus.h"
 #include "optics/depth_distinctness.h"
 #include "optics/doe.h"
@@ -144,6 +145,31 @@ TEST_CASE("baselines: a network that outputs the baselines scores exactly the ba
     CHECK(j["scenes"][0].contains(k));
   }
   CHECK(j.at("depth_rmse_m") == j.at("baseline_constant_depth_rmse_m"));
+}
+
+TEST_CASE("heads started at the baselines: the untrained network outputs exactly the upsampling cube and the constant depth",
+          "[baselines][model]") {
+  torch::manual_seed(3);
+  model::NetOptions o;
+  o.bands = 5, o.base_width = 4, o.levels = 2, o.norm = "group", o.depth_min_m = 0.4, o.depth_max_m = 2.5;
+  const torch::Tensor w = torch::rand({5, 3});
+  model::HsdNet net(o, w);
+  const torch::Tensor x = torch::rand({2, 3, 20, 24});
+  const double inv = 1.0 / 0.9;  // 0.9 m
+  const model::NetOutput before = net->forward(x);
+  CHECK((before.hs - model::spectral_upsample(w, x)).abs().max().item<double>() > 1e-3);  // random heads: not the baseline
+  net->start_at_baselines(inv);
+  const model::NetOutput out = net->forward(x);
+  CHECK((out.hs - model::spectral_upsample(w, x)).abs().max().item<double>() == 0.0);
+  CHECK((out.depth_m - 0.9).abs().max().item<double>() < 1e-5);
+  // The first update moves both heads: gradients reach them although their weights are zero.
+  const torch::Tensor loss = (out.hs - 1.0).abs().mean() + (out.inv_depth - 2.0).abs().mean();
+  loss.backward();
+  for (const auto& p : net->named_parameters())
+    if (p.key().rfind("head_", 0) == 0 && p.key().find("weight") != std::string::npos) {
+      INFO(p.key());
+      CHECK(p.value().grad().abs().sum().item<double>() > 0.0);
+    }
 }
 
 TEST_CASE("all-in-focus control: one diffraction-limited Airy pattern at every band and depth", "[baselines][psf][closed-form]") {
