@@ -8,6 +8,7 @@
 #include <torch/torch.h>
 
 #include "common/app.h"
+#include "common/atomic_file.h"
 #include "common/log.h"
 #include "data/real_test_set.h"
 #include "data/synthetic_dataset.h"
@@ -36,6 +37,8 @@ const char* kUsage =
 
 int run(const AppArgs& args) {
   const Config cfg = load_config(args.config_path, args.overrides);
+  make_dirs(args.out_dir);  // an unwritable --out is found before any scene is made
+  check_output_paths({args.out_dir + "/manifest.json", args.out_dir + "/config.json"});
   setup_threads(cfg.threads);
   const auto t0 = std::chrono::steady_clock::now();
   const data::Manifest m = args.has("--real") ? data::generate_real_test_set(cfg, args.out_dir)
