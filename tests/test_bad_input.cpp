@@ -260,7 +260,7 @@ TEST_CASE("bad input: hsd_reconstruct refuses damaged images and models and writ
   });
 }
 
-TEST_CASE("bad input: hsd_import and hsd_ablate refuse inconsistent flags", "[app][bad_input]") {
+TEST_CASE("bad input: hsd_import, hsd_bench and hsd_ablate refuse inconsistent flags and arguments", "[app][bad_input]") {
   Fixture& F = fixture();
   REQUIRE(F.ok);
   const std::string b = F.base.string(), rgbd = " --rgb " + b + "/frame.png --disparity " + b + "/frame.png";
@@ -268,6 +268,14 @@ TEST_CASE("bad input: hsd_import and hsd_ablate refuse inconsistent flags", "[ap
       {F.cfg + rgbd + " --focal-px 0 --baseline-m 0.1 --doffs-px 0 --out " + b + "/imp", 2, "--focal-px", ""},
       {F.cfg + rgbd + " --baseline-m 0.1 --out " + b + "/imp", 2, "--focal-px", ""},
       {F.cfg + " --rgb " + b + "/huge.png --disparity " + b + "/frame.png --out " + b + "/imp", 2, "huge.png", ""},
+  });
+  check_table("hsd_bench", {
+      {"psf extra", 2, "extra", ""},
+      {"nosuch --config configs/tiny.json", 2, "nosuch", ""},
+      {"psf --config " + b + "/deep.json", 2, "deep.json", ""},
+      {"psf --config configs/tiny.json --set fisher.photons=1e999", 2, "fisher.photons", ""},
+      {"psf --threads two", 2, "--threads", ""},
+      {"psf --json --json", 2, "--json", ""},
   });
   check_table("hsd_ablate", {
       {F.cfg + " --seeds '' --out " + b + "/abl", 2, "--seeds", ""},
