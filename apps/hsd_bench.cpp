@@ -3,6 +3,7 @@
 // With --json, stdout holds exactly one JSON object (logs go to stderr).
 #include <cstdio>
 #include <filesystem>
+#include <set>
 
 #include <torch/torch.h>
 
@@ -46,10 +47,17 @@ const char* kUsage =
 int run(const AppArgs& args) {
   if (args.positional.size() != 1) input_error("hsd_bench", "expected one benchmark NAME (see --help)");
   const std::string name = args.positional[0];
+  static const std::set<std::string> kNames{"psf", "sim", "data", "train", "dist", "reconstruct", "accuracy"};
+  if (!kNames.count(name)) input_error("hsd_bench " + name, "unknown benchmark (known: psf, sim, data, train, dist, reconstruct, accuracy)");
   const bool json = args.has("--json");
   if (json) log::set_quiet(true);
   const std::string config = args.config_path.empty() ? std::string(HSD_SOURCE_DIR) + "/configs/paper.json" : args.config_path;
   Config cfg = load_config(config, args.overrides);
+  // Every flag is read before the first progress line, so a bad one is the only
+  // line: all of hsd_bench's valued flags but the child's two are integers.
+  for (const auto& [flag, value] : args.options)
+    if (flag != "--child-mode" && flag != "--child-result") (void)args.integer(flag, 0);
+  const int threads = int(args.integer("--threads", cfg.threads));
   // A config that starts from the Fisher design (paper.json) before hsd_fisher
   // has written it: the Fresnel start instead (the timings do not depend on the
   // height values; hsd_bench accuracy's numbers are for that start).
@@ -59,7 +67,7 @@ int run(const AppArgs& args) {
     o.push_back("optics.doe.init=\"fresnel\"");
     cfg = load_config(config, o);
   }
-  setup_threads(args.integer("--threads", cfg.threads), !json);
+  setup_threads(threads, !json);
   bench::BenchOutput out;
   int rc = 0;
   if (name == "psf") rc = bench::bench_psf(cfg, args, out);

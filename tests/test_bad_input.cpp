@@ -275,6 +275,9 @@ TEST_CASE("bad input: hsd_import, hsd_bench and hsd_ablate refuse inconsistent f
       {"psf --config " + b + "/deep.json", 2, "deep.json", ""},
       {"psf --config configs/tiny.json --set fisher.photons=1e999", 2, "fisher.photons", ""},
       {"psf --threads two", 2, "--threads", ""},
+      // paper.json before hsd_fisher has run (a fresh clone): the fallback's note must not come first
+      {"psf --set optics.doe.fisher_path=\\\"" + b + "/no_fisher.pt\\\" --threads two", 2, "--threads", ""},
+      {"psf --set optics.doe.fisher_path=\\\"" + b + "/no_fisher.pt\\\" --repeats x", 2, "--repeats", ""},
       {"psf --json --json", 2, "--json", ""},
   });
   check_table("hsd_ablate", {
