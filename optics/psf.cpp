@@ -1,6 +1,7 @@
 #include "optics/psf.h"
 
 #include <cmath>
+#include <mutex>
 
 #include <torch/torch.h>
 
@@ -73,7 +74,6 @@ PsfSimulator::PsfSimulator(PsfSpec spec) : spec_(std::move(spec)) {
   if (s.pupil_cell_integration != "sinc" && s.pupil_cell_integration != "sinc_cross" &&
       s.pupil_cell_integration != "midpoint")
     throw InputError("PSF: pupil_cell_integration must be \"sinc_cross\", \"sinc\" or \"midpoint\"");
-  const bool cell_sinc = s.cell_sinc(), cross = s.cell_kernel_terms() == 2;
   if (s.spectral_samples < 1) throw InputError("PSF: spectral_samples must be >= 1");
   const size_t K = size_t(s.spectral_samples);
   if (K > 1 && !(s.band_width_m > 0.0)) throw InputError("PSF: spectral_samples > 1 needs band_width_m > 0");
@@ -88,9 +88,26 @@ PsfSimulator::PsfSimulator(PsfSpec spec) : spec_(std::move(spec)) {
   aperture_real_ = aperture_.to(s.real_dtype);
   if (!(aperture_energy_ > 0.0)) throw InputError("PSF: the aperture covers no DOE sample");
   pupil_x_ = centred_coordinates(s.pupil_samples(), s.pupil_pitch_m()).to(f64);
+  kernels_ = std::make_shared<KernelCache>(L * K);
+}
+
+// Node j's kernels, built on first use (once, whichever thread asks first): a
+// scene or a batch that leaves out bands never pays for their factorisations.
+const PsfSimulator::NodeKernel& PsfSimulator::kernel(size_t j) const {
+  KernelCache& c = *kernels_;
+  std::call_once(c.once[j], [&] { c.kernels[j] = build_kernel(j); });
+  return c.kernels[j];
+}
+
+PsfSimulator::NodeKernel PsfSimulator::build_kernel(size_t j) const {
+  const auto& s = spec_;
+  const size_t K = size_t(s.spectral_samples);
+  const bool cell_sinc = s.cell_sinc(), cross = s.cell_kernel_terms() == 2;
+  const auto f64 = torch::TensorOptions().dtype(torch::kFloat64).device(s.device);
   const torch::Tensor pixel_x = centred_coordinates(s.psf_size, s.pixel_pitch_m);  // [P]
   const auto cdt = complex_dtype();
-  for (size_t j = 0; j < L * K; ++j) {
+  NodeKernel out;
+  {
     const Quadrature1D q = gauss_legendre(s.pixel_nodes[j / K]);
     const torch::Tensor nodes = torch::tensor(q.nodes, torch::kFloat64) * s.pixel_pitch_m;    // [n]
     const torch::Tensor sensor_x = (pixel_x.view({-1, 1}) + nodes.view({1, -1})).reshape(-1);  // [P·n], pixel-major
@@ -106,15 +123,15 @@ PsfSimulator::PsfSimulator(PsfSpec spec) : spec_(std::move(spec)) {
     if (s.mft_rank_tol > 0.0) {
       const LowRankKernel k = factor_tilt_kernel(tilt64, s.mft_rank_tol, torch::kComplexDouble);
       const torch::Tensor left = cross ? torch::cat({rows(k.left, row0), rows(k.left, row1)}, 1) : rows(k.left, row0);
-      left_.push_back(left.to(cdt).contiguous());
-      right_.push_back(k.right.to(cdt).contiguous());
-      tilt_.push_back(torch::Tensor());
+      out.left = left.to(cdt).contiguous();
+      out.right = k.right.to(cdt).contiguous();
     } else {
-      tilt_.push_back((cross ? torch::stack({rows(tilt64, row0), rows(tilt64, row1)}) : rows(tilt64, row0)).to(cdt));
+      out.tilt = (cross ? torch::stack({rows(tilt64, row0), rows(tilt64, row1)}) : rows(tilt64, row0)).to(cdt);
     }
     const torch::Tensor w = torch::tensor(q.weights, torch::kFloat64);
-    weights_.push_back(w.to(torch::TensorOptions().dtype(s.real_dtype).device(s.device)));
+    out.weights = w.to(torch::TensorOptions().dtype(s.real_dtype).device(s.device));
   }
+  return out;
 }
 
 namespace {
@@ -227,16 +244,15 @@ struct RecomputedBand : public torch::autograd::Function<RecomputedBand> {
   }
 };
 
-torch::Tensor low_rank(const std::vector<torch::Tensor>& factors, size_t j) {
-  return factors.empty() ? torch::Tensor() : factors[j];
-}
-
 }  // namespace
 
 std::vector<int64_t> PsfSimulator::kernel_ranks() const {
   std::vector<int64_t> r;
   const int64_t G = spec_.cell_kernel_terms();
-  for (size_t j = 0; j < tilt_.size(); ++j) r.push_back(left_.empty() ? tilt_[j].size(-2) : left_[j].size(1) / G);
+  for (size_t j = 0; j < kernels_->kernels.size(); ++j) {
+    const NodeKernel& k = kernel(j);
+    r.push_back(k.left.defined() ? k.left.size(1) / G : k.tilt.size(-2));
+  }
   return r;
 }
 
@@ -277,7 +293,8 @@ PsfStack PsfSimulator::compute(const torch::Tensor& height_m, const std::vector<
     torch::Tensor psf, energy;
     for (int64_t q = 0; q < K; ++q) {
       const size_t j = size_t(l * K + q);
-      b.tilt = tilt_[j], b.left = low_rank(left_, j), b.right = low_rank(right_, j), b.weights = weights_[j];
+      const NodeKernel& kj = kernel(j);
+      b.tilt = kj.tilt, b.left = kj.left, b.right = kj.right, b.weights = kj.weights;
       b.wavelength_m = node_wavelength_m_[j], b.refractive_index = node_index_[j], b.nodes = s.pixel_nodes[size_t(l)];
       torch::Tensor p, e;
       if (checkpoint) {

@@ -10,6 +10,8 @@
 // Differentiable in the height map (autograd through every step).
 #pragma once
 #include <functional>
+#include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -103,9 +105,19 @@ class PsfSimulator {
   torch::Tensor pupil_x_;               // float64 [N·k]
   // Per spectral node j = l·K + k (band l, sub-wavelength k):
   std::vector<double> node_wavelength_m_, node_index_, node_weight_;
-  std::vector<torch::Tensor> tilt_;     // complex [P·n_l, N·k] (exact path)
-  std::vector<torch::Tensor> left_, right_;  // low-rank factors of tilt_ (if mft_rank_tol > 0)
-  std::vector<torch::Tensor> weights_;  // real [n_l], pixel Gauss-Legendre weights, sum 1
+  struct NodeKernel {
+    torch::Tensor tilt;         // complex [P·n_l, N·k] (exact path; undefined when factored)
+    torch::Tensor left, right;  // low-rank factors of the tilt kernel (if mft_rank_tol > 0)
+    torch::Tensor weights;      // real [n_l], pixel Gauss-Legendre weights, sum 1
+  };
+  struct KernelCache {
+    explicit KernelCache(size_t n) : kernels(n), once(new std::once_flag[n]) {}
+    std::vector<NodeKernel> kernels;
+    std::unique_ptr<std::once_flag[]> once;
+  };
+  const NodeKernel& kernel(size_t j) const;  // built on first use
+  NodeKernel build_kernel(size_t j) const;
+  std::shared_ptr<KernelCache> kernels_;      // shared by copies of this simulator
   double aperture_energy_ = 0.0;        // Σ A² (δ² units)
 };
 

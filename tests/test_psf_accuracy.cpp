@@ -7,6 +7,7 @@
 #include "common/config.h"
 #include "helpers.h"
 #include "optics/doe.h"
+#include "optics/fresnel_mft.h"
 
 using namespace hsd;
 
@@ -77,5 +78,25 @@ TEST_CASE("low-rank window kernels match the exact MFT and keep far fewer ranks 
     CHECK(double(ranks[l]) > tbp);
     CHECK(double(ranks[l]) < tbp + 40.0);
     CHECK(ranks[l] < spec.psf_size * spec.pixel_nodes[l] / 2);
+  }
+}
+
+TEST_CASE("the window kernel's factors from the Gram matrix are the truncated SVD's", "[psf][accuracy]") {
+  // The paper's geometry: 63 pixels x 2 nodes at 6.22 um, 512 pupil samples at 4 um, s = 50 mm.
+  const torch::Tensor x = (torch::arange(126, torch::kFloat64) - 62.5) * (6.22e-6 / 2.0);
+  const torch::Tensor xi = (torch::arange(512, torch::kFloat64) - 255.5) * 4e-6;
+  for (double lambda : {420e-9, 550e-9, 660e-9}) {
+    const torch::Tensor T = optics::compute_tilt_kernel(x, xi, lambda, 0.05, torch::kComplexDouble);
+    const torch::Tensor S = torch::linalg_svdvals(T);
+    for (double tol : {1e-3, 1e-4, 1e-6}) {
+      INFO("lambda " << lambda << ", tol " << tol);
+      const optics::LowRankKernel k = optics::factor_tilt_kernel(T, tol, torch::kComplexDouble);
+      const int64_t r = k.left.size(1), r_svd = (S > tol * S[0].item<double>()).sum().item<int64_t>();
+      CHECK(std::abs(r - r_svd) <= 1);  // a singular value at the cut may fall either side of it
+      // The error of the truncation is the first discarded singular value (Eckart-Young).
+      const double err = torch::linalg_matrix_norm(T - torch::mm(k.left, k.right), 2).item<double>();
+      CHECK(err <= 1.05 * S[r].item<double>() + 1e-12 * S[0].item<double>());
+      CHECK(err < tol * S[0].item<double>() * 1.05);
+    }
   }
 }
