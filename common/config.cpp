@@ -353,6 +353,9 @@ Config parse_config(const Json& resolved) {
     if (T.decay != "cosine" && T.decay != "none") t->fail("decay", "expected \"cosine\" or \"none\", got \"" + T.decay + "\"");
     T.min_lr_ratio = t->get_number("min_lr_ratio", T.min_lr_ratio);
     if (!(T.min_lr_ratio >= 0.0 && T.min_lr_ratio <= 1.0)) t->fail("min_lr_ratio", "must be in [0, 1]");
+    T.precision = t->get_string("precision", T.precision);
+    if (T.precision != "float32" && T.precision != "bfloat16" && T.precision != "auto")
+      t->fail("precision", "expected \"float32\", \"bfloat16\" or \"auto\", got \"" + T.precision + "\"");
     T.clip_grad_norm = t->get_number("clip_grad_norm", T.clip_grad_norm);
     if (T.clip_grad_norm < 0.0) t->fail("clip_grad_norm", "must be >= 0 (0 = off)");
     T.freeze_doe = t->get_bool("freeze_doe", T.freeze_doe);

@@ -138,6 +138,13 @@ struct TrainConfig {
   int64_t val_patches = 8;          // fixed validation patches from the val split
   int64_t checkpoint_every = 100;   // steps between checkpoints (and the last step)
   int64_t log_every = 10;           // steps between metrics.csv rows
+  // The network's arithmetic in training steps (model/unet.h): "float32" (the
+  // default: bfloat16's validation curves did not match float32's on the
+  // quick config, README, Training), "bfloat16" (convolutions in bfloat16,
+  // float32 master weights, optimizer, norms and loss), or "auto" (bfloat16 on
+  // a CPU with native bfloat16 arithmetic, float32 elsewhere). Validation,
+  // evaluation and the optics are float32 whatever this says.
+  std::string precision = "float32";
 };
 
 // Data-parallel training over several processes (train/distributed.h); who

@@ -21,6 +21,35 @@ torch::nn::Sequential HsdNetImpl::block(int64_t in, int64_t out) {
   return s;
 }
 
+torch::Tensor HsdNetImpl::run_conv(torch::nn::Conv2d& conv, const torch::Tensor& x) const {
+  if (x.scalar_type() == conv->weight.scalar_type()) return conv->forward(x);
+  const auto& o = conv->options;
+  const torch::Tensor b = conv->bias.defined() ? conv->bias.to(x.scalar_type()) : torch::Tensor();
+  // Channels-last weights with channels-last activations: oneDNN's fast path for bfloat16.
+  return F::conv2d(x, conv->weight.to(x.scalar_type()).contiguous(torch::MemoryFormat::ChannelsLast),
+                   F::Conv2dFuncOptions().bias(b).stride(o.stride()).padding(o.padding()));
+}
+
+torch::Tensor HsdNetImpl::run_block(torch::nn::Sequential& block, torch::Tensor x) const {
+  if (x.scalar_type() == torch::kFloat32) return block->forward(x);
+  const auto dtype = x.scalar_type();
+  for (const auto& m : block->children()) {
+    if (m->as<torch::nn::Conv2dImpl>()) {
+      torch::nn::Conv2d c(std::dynamic_pointer_cast<torch::nn::Conv2dImpl>(m));
+      x = run_conv(c, x);
+    } else if (m->as<torch::nn::ReLUImpl>()) {
+      x = torch::relu(x);
+    } else if (auto* gn = m->as<torch::nn::GroupNormImpl>()) {
+      x = gn->forward(x.to(torch::kFloat32)).to(dtype);  // statistics in float32
+    } else if (auto* bn = m->as<SyncBatchNorm2dImpl>()) {
+      x = bn->forward(x.to(torch::kFloat32)).to(dtype);
+    } else {
+      TORCH_CHECK(false, "HsdNet: no mixed-precision rule for layer ", m->name());
+    }
+  }
+  return x;
+}
+
 HsdNetImpl::HsdNetImpl(const NetOptions& options, const torch::Tensor& upsampling_weights) : opt_(options) {
   TORCH_CHECK(opt_.levels >= 1 && opt_.levels <= 8, "levels must be in [1, 8]");
   TORCH_CHECK(upsampling_weights.dim() == 2 && upsampling_weights.size(0) == opt_.bands &&
@@ -61,13 +90,16 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image) {
     else o.mode(torch::kReplicate);
     x = F::pad(x, o);
   }
+  // Mixed precision in training (see unet.h); padding first (no bfloat16 padding kernels on the CPU).
+  const bool mixed = is_training() && opt_.train_dtype != torch::kFloat32;
+  if (mixed) x = x.to(opt_.train_dtype).contiguous(torch::MemoryFormat::ChannelsLast);
   std::vector<torch::Tensor> skips;
   for (auto& d : down_) {
-    x = d->forward(x);
+    x = run_block(d, x);
     skips.push_back(x);
     x = F::max_pool2d(x, F::MaxPool2dFuncOptions(2));
   }
-  const torch::Tensor bottom = bottom_->forward(x);
+  const torch::Tensor bottom = run_block(bottom_, x);
   auto decode = [&](std::vector<torch::nn::Conv2d>& up, std::vector<torch::nn::Sequential>& dec) {
     torch::Tensor y = bottom;
     for (size_t k = 0; k < up.size(); ++k) {
@@ -76,13 +108,13 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image) {
                                 .size(std::vector<int64_t>{skip.size(2), skip.size(3)})
                                 .mode(torch::kBilinear)
                                 .align_corners(false));
-      y = torch::relu(up[k]->forward(y));
-      y = dec[k]->forward(torch::cat({y, skip}, 1));
+      y = torch::relu(run_conv(up[k], y));
+      y = run_block(dec[k], torch::cat({y, skip}, 1));
     }
     return y;
   };
-  torch::Tensor hs = head_hs_->forward(decode(up_hs_, dec_hs_));
-  torch::Tensor d = torch::sigmoid(head_depth_->forward(decode(up_depth_, dec_depth_)));
+  torch::Tensor hs = run_conv(head_hs_, decode(up_hs_, dec_hs_)).to(torch::kFloat32).contiguous();
+  torch::Tensor d = torch::sigmoid(run_conv(head_depth_, decode(up_depth_, dec_depth_)).to(torch::kFloat32).contiguous());
   if (ph || pw) {
     hs = hs.narrow(2, 0, H).narrow(3, 0, W);
     d = d.narrow(2, 0, H).narrow(3, 0, W);

@@ -9,6 +9,12 @@
 // TorchScript also has, so the exporter can re-express it. Batch norm is
 // synchronised over data-parallel replicas once set_replica_group is called
 // (sync_batch_norm.h); alone it is torch's BatchNorm2d.
+// Mixed precision (NetOptions::train_dtype = bfloat16): in training mode the
+// convolutions run in bfloat16 on bfloat16 copies of the float32 weights (the
+// copies are differentiable casts, so gradients, Adam and its state stay
+// float32) in channels-last layout (oneDNN's fast bfloat16 path), the norms
+// compute their statistics in float32, and the heads' outputs are float32
+// before the sigmoid, the residual and the loss. Eval mode is float32 always.
 #pragma once
 #include <memory>
 #include <string>
@@ -27,6 +33,7 @@ struct NetOptions {
   int64_t levels = 4;              // poolings
   std::string norm = "batch";      // "batch" | "group" | "none"
   double depth_min_m = 0.4, depth_max_m = 2.0;
+  torch::ScalarType train_dtype = torch::kFloat32;  // kFloat32 | kBFloat16: the convolutions' dtype in training mode
 };
 
 struct NetOutput {
@@ -55,6 +62,9 @@ class HsdNetImpl : public torch::nn::Module {
 
  private:
   torch::nn::Sequential block(int64_t in, int64_t out);
+  // One block or layer in the dtype of x (float32 or bfloat16, see above).
+  torch::Tensor run_block(torch::nn::Sequential& block, torch::Tensor x) const;
+  torch::Tensor run_conv(torch::nn::Conv2d& conv, const torch::Tensor& x) const;
   NetOptions opt_;
   std::vector<torch::nn::Sequential> down_;
   torch::nn::Sequential bottom_{nullptr};

@@ -87,6 +87,11 @@ void check_grads(const std::vector<std::pair<std::string, torch::Tensor>>& param
 
 }  // namespace
 
+int64_t render_margin_px(const Config& cfg) {
+  return cfg.data.render_margin_px >= 0 ? cfg.data.render_margin_px
+                                        : cfg.optics.psf_size / 2 + int64_t(std::ceil(3.0 * cfg.sensor.mask_sigma_px));
+}
+
 Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
     : cfg_(cfg),
       group_(group && group->world_size() > 1 ? std::move(group) : nullptr),
@@ -103,7 +108,10 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
     std::lock_guard<std::mutex> lock(global_rng);
     torch::manual_seed(int64_t(cfg.seed));
     const torch::Tensor w = model::spectral_upsampling_weights(sensor_.omega.cpu());
-    net_ = model::HsdNet(net_options(cfg), w);
+    model::NetOptions o = net_options(cfg);
+    precision_ = training_precision(cfg.train.precision, device_);
+    o.train_dtype = precision_.dtype;
+    net_ = model::HsdNet(o, w);
   }
   fixed_psf_ = optics::psf_source_provider(cfg.optics, material_, device_);
   if (fixed_psf_) {
@@ -112,8 +120,7 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
   doe_trained_ = !cfg.train.freeze_doe && !fixed_psf_;
   // The PSF's reach plus the soft layer masks' (3σ): then the patch's image is
   // the whole scene's image at those pixels (tests: sensor, margin).
-  margin_ = cfg.data.render_margin_px >= 0 ? cfg.data.render_margin_px
-                                           : cfg.optics.psf_size / 2 + int64_t(std::ceil(3.0 * cfg.sensor.mask_sigma_px));
+  margin_ = render_margin_px(cfg);
   net_->to(device_);
   weights_ = {cfg.train.loss_alpha, cfg.train.loss_beta, cfg.train.loss_gamma};
   std::vector<torch::optim::OptimizerParamGroup> groups;
@@ -258,12 +265,40 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   if (groups.size() > 1) static_cast<torch::optim::AdamOptions&>(groups[1].options()).lr(st.lr_doe);
 
   net_->train();
+  // Profiling (set_profile) times each phase; the backward pass is then run in
+  // three parts (network, sensor, PSF) by cutting the graph at the network's
+  // input and at the PSFs: the same chain rule, the same gradients.
+  StepProfile* const prof = profile_;
+  using Clock = std::chrono::steady_clock;
+  auto tic = Clock::now();
+  auto lap = [&](double StepProfile::*phase) {
+    if (!prof) return;
+    const auto now = Clock::now();
+    prof->*phase += std::chrono::duration<double>(now - tic).count();
+    tic = now;
+  };
+  const optics::PsfProvider& base = fixed_psf_ ? fixed_psf_ : shared_psf_;
+  optics::PsfProvider provider = base;
+  torch::Tensor psf_out, psf_cut;  // profiling: the PSFs and their cut copy
+  double psf_seconds = 0;
+  if (prof)
+    provider = [&](const torch::Tensor& hh, const std::vector<int64_t>& layers, const std::vector<int64_t>& bands) {
+      const auto t = Clock::now();
+      psf_out = base ? base(hh, layers, bands) : psf_->compute(hh, layers, {}, bands).psf;
+      psf_seconds += std::chrono::duration<double>(Clock::now() - t).count();
+      psf_cut = psf_out.requires_grad() ? psf_out.detach().requires_grad_() : psf_out;
+      return psf_cut;
+    };
   const auto gens = image_generators(mix(cfg_.seed ^ 0xA5A5A5A5ull, uint64_t(step)), batch.first_index, batch.radiance.size(0));
   const torch::Tensor h = doe_.height();
   const optics::SensorImage img =
-      optics::simulate_sensor(*psf_, sensor_, h, batch.radiance, batch.depth_m, gens, optics::LeaveOut(),
-                              fixed_psf_ ? fixed_psf_ : shared_psf_);
-  const model::NetOutput out = net_->forward(centre(img.image));
+      optics::simulate_sensor(*psf_, sensor_, h, batch.radiance, batch.depth_m, gens, optics::LeaveOut(), provider);
+  lap(&StepProfile::sensor_forward);
+  if (prof) prof->sensor_forward -= psf_seconds, prof->psf_forward += psf_seconds;
+  const torch::Tensor image = centre(img.image);
+  const torch::Tensor net_in = prof && image.requires_grad() ? image.detach().requires_grad_() : image;
+  const model::NetOutput out = net_->forward(net_in);
+  lap(&StepProfile::network_forward);
   const LossTerms L =
       reconstruction_loss(out.hs, centre(batch.radiance), out.inv_depth, 1.0 / centre(batch.depth_m), weights_);
   // The global batch's loss terms (the mean of the ranks' equal slices): what
@@ -276,8 +311,16 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   if (!std::isfinite(terms[0]))
     throw NumericalError("step " + std::to_string(step) + ": the loss is NaN or Inf (cube term " + c10::str(terms[1]) +
                          ", depth term " + c10::str(terms[2]) + ")");
+  lap(&StepProfile::loss);
   opt_->zero_grad();
   L.total.backward();
+  lap(&StepProfile::network_backward);
+  if (prof && net_in.requires_grad() && net_in.grad().defined()) {
+    image.backward(net_in.grad());
+    lap(&StepProfile::sensor_backward);
+    if (psf_out.defined() && psf_cut.requires_grad() && psf_cut.grad().defined()) psf_out.backward(psf_cut.grad());
+    lap(&StepProfile::psf_backward);
+  }
   if (group_) group_->average_gradients_(trained_parameters(), "the gradients of step " + std::to_string(step));
   std::vector<std::pair<std::string, torch::Tensor>> named;
   for (const auto& p : net_->named_parameters()) named.emplace_back("network parameter " + p.key(), p.value());
@@ -287,6 +330,8 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   // its own scale (its gradient is in loss per metre, ~1e6 times larger).
   if (T.clip_grad_norm > 0) torch::nn::utils::clip_grad_norm_(net_->parameters(), T.clip_grad_norm);
   opt_->step();
+  lap(&StepProfile::optimizer);
+  if (prof) ++prof->steps;
   st.loss = terms[0];
   st.hs = terms[1];
   st.depth = terms[2];
@@ -591,6 +636,7 @@ void Trainer::run(const std::string& out_dir, bool resume) {
     progress = std::make_unique<log::Progress>("train", long(T.steps));
     progress->set_start(long(start));
   }
+  if (writer) log::info("network arithmetic in training steps: " + precision_.why);
   if (group_) log::info("data-parallel: " + std::to_string(world_) + " ranks x " + std::to_string(T.batch_size / world_) +
                         " patches = global batch " + std::to_string(T.batch_size));
   const auto t0 = std::chrono::steady_clock::now();

@@ -32,6 +32,7 @@
 #include "optics/sensor.h"
 #include "train/distributed.h"
 #include "train/loss.h"
+#include "train/precision.h"
 
 namespace hsd::train {
 
@@ -48,6 +49,14 @@ struct StepStats {
   double loss = 0, hs = 0, depth = 0, tv = 0, lr_net = 0, lr_doe = 0;
 };
 
+// Seconds per phase of Trainer::step, summed over `steps` steps (set_profile).
+// CPU timings (a CUDA device would need a synchronisation per phase).
+struct StepProfile {
+  double psf_forward = 0, sensor_forward = 0, network_forward = 0, loss = 0;
+  double network_backward = 0, sensor_backward = 0, psf_backward = 0, optimizer = 0;
+  int64_t steps = 0;
+};
+
 struct ValStats {
   double loss = 0, hs_psnr_db = 0, depth_rmse_m = 0, depth_mae_m = 0, peak = 0;
   // Baselines on the same patches and pixels (train/baselines.h): the
@@ -56,6 +65,11 @@ struct ValStats {
   // Fraction of pixels whose depth sigmoid is within 0.02 of 0 or 1 (saturated).
   double depth_saturated = 0;
 };
+
+// data.render_margin_px resolved: the PSF's reach plus 3σ of the soft layer
+// masks when negative (the default), then a patch's image is the whole
+// scene's image at its pixels (tests: sensor, margin).
+int64_t render_margin_px(const Config& cfg);
 
 // InputError naming train.batch_size unless the global batch splits evenly over the ranks.
 void check_global_batch(const Config& cfg, int world_size);
@@ -75,6 +89,8 @@ class Trainer {
   Batch train_batch(int64_t step) const;
   // One optimisation step with index `step` (0-based; sets the rates, seeds the noise).
   StepStats step(const Batch& batch, int64_t step);
+  // Phase timings of the following steps into *p (nullptr: off, the default).
+  void set_profile(StepProfile* p) { profile_ = p; }
   // Loss and metrics on the fixed validation patches (network in eval mode,
   // fixed noise); with a group each rank takes a share and the sums are combined.
   ValStats validate();
@@ -107,6 +123,8 @@ class Trainer {
   // median (attach_data, or a checkpoint that stores it); NaN when unknown.
   double baseline_inv_depth() const { return baseline_inv_depth_; }
   bool doe_trained() const { return doe_trained_; }
+  // The network's training arithmetic (train.precision resolved).
+  const TrainingPrecision& precision() const { return precision_; }
   model::HsdNet& net() { return net_; }
   optics::Doe& doe() { return doe_; }
   const optics::PsfSimulator& psf() const { return *psf_; }
@@ -131,6 +149,8 @@ class Trainer {
   optics::PsfProvider fixed_psf_;   // optics.psf_source = "all_in_focus": the control's PSFs
   bool doe_trained_ = true;         // false when frozen (train.freeze_doe) or unused (a fixed PSF source)
   double baseline_inv_depth_ = std::nan("");
+  TrainingPrecision precision_;
+  StepProfile* profile_ = nullptr;
   int64_t margin_ = 0;              // data.render_margin_px resolved
   int64_t rank_ = 0, world_ = 1;
   torch::Device device_;

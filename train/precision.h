@@ -1,0 +1,28 @@
+// The network's arithmetic in training steps (train.precision; README,
+// Training): float32, or bfloat16 convolutions under float32 master weights
+// (model/unet.h, "Mixed precision"). "auto" takes bfloat16 on a CPU with
+// native bfloat16 dot products (AVX512-BF16 or AMX-BF16), float32 elsewhere.
+// The default is "float32": on the quick config bfloat16 ended 14.5% above
+// float32's validation loss (the criterion was 2%) at the same step time
+// (README, Training).
+#pragma once
+#include <string>
+
+#include <torch/types.h>
+
+namespace hsd::train {
+
+// True on a Linux CPU whose flags (/proc/cpuinfo) include avx512_bf16 or amx_bf16.
+bool cpu_has_native_bf16();
+
+struct TrainingPrecision {
+  torch::ScalarType dtype = torch::kFloat32;  // kFloat32 | kBFloat16
+  std::string why;                            // one line for the log, e.g. "bfloat16 (auto: the CPU has AVX512-BF16)"
+};
+
+// precision: "float32" | "bfloat16" | "auto" (validated by the config).
+// "auto" is bfloat16 on a CPU device with native bfloat16, float32 otherwise
+// (CUDA included: its mixed precision is not measured here).
+TrainingPrecision training_precision(const std::string& precision, torch::Device device);
+
+}  // namespace hsd::train
