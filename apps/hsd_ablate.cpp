@@ -29,6 +29,7 @@
 #include "common/log.h"
 #include "train/metrics_csv.h"
 #include "train/plot.h"
+#include "usage/hsd_ablate.h"
 
 extern char** environ;
 
@@ -37,15 +38,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const char* kUsage =
-    "hsd_ablate --config FILE [--seeds 0,1,2] [--set key=VALUE ...] --out DIR\n"
-    "  Trains the config's network with the DOE fixed to fresnel, spiral and fisher,\n"
-    "  learned end to end from fisher, and the all-in-focus control (no optical\n"
-    "  cue), same data and budget; evaluates each on the test split against the\n"
-    "  baselines, and writes DIR/ablation.md (mean +- std over seeds, pairwise\n"
-    "  2-standard-error comparisons), DIR/ablation.csv and DIR/error_vs_time.png. Each arm's training and evaluation output is in\n"
-    "  DIR/<arm>_seed<k>/{run,eval}. Small budget: configs/ablation_quick.json;\n"
-    "  the paper's: configs/ablation_paper.json.";
+const char* kUsage = usage::kText;
 
 struct Arm {
   std::string name, tag;

@@ -20,20 +20,13 @@
 #include "optics/sensor.h"
 #include "train/evaluator.h"
 #include "train/trainer.h"
+#include "usage/hsd_eval.h"
 
 using namespace hsd;
 
 namespace {
 
-const char* kUsage =
-    "hsd_eval --config FILE (--checkpoint CKPT | --model reconstructor.pt [--doe H.pt]) [--split test]\n"
-    "         [--data DIR] [--set key=VALUE ...] --out DIR\n"
-    "  Evaluates the DOE and network of a training checkpoint on every scene of a\n"
-    "  split of data.root: hyperspectral and luminance PSNR/SSIM, depth RMSE/MAE,\n"
-    "  ColorChecker reflectance RMSE. Writes DIR/metrics.json, DIR/report.md and\n"
-    "  pictures. With --model, the DOE is DIR_OF_MODEL/doe_height.pt (hsd_export) or --doe.\n"
-    "  --data DIR evaluates another dataset (same as --set data.root=DIR), e.g. the\n"
-    "  held-out real-derived set of hsd_scenes --real.";
+const char* kUsage = usage::kText;
 
 int run(const AppArgs& args) {
   std::vector<std::string> overrides = args.overrides;

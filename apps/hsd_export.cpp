@@ -18,17 +18,13 @@
 #include "optics/doe.h"
 #include "optics/psf_atlas.h"
 #include "train/trainer.h"
+#include "usage/hsd_export.h"
 
 using namespace hsd;
 
 namespace {
 
-const char* kUsage =
-    "hsd_export --config FILE --checkpoint CKPT [--set key=VALUE ...] --out DIR\n"
-    "  Writes DIR/reconstructor.pt (TorchScript: forward(x [B, 3, H, W] linear RGB)\n"
-    "  -> (hs [B, L, H, W], depth [B, 1, H, W] metres); attributes wavelengths_m,\n"
-    "  depth_range_m, camera, doe_init, config_sha, hsd_version), DIR/doe_height.pt,\n"
-    "  DIR/psf_atlas.png and DIR/config.json.";
+const char* kUsage = usage::kText;
 
 int run(const AppArgs& args) {
   const Config cfg = load_config(args.config_path, args.overrides);

@@ -18,21 +18,13 @@
 #include "data/reflectance_library.h"
 #include "data/rgbd_import.h"
 #include "optics/spectrum.h"
+#include "usage/hsd_import.h"
 
 using namespace hsd;
 
 namespace {
 
-const char* kUsage =
-    "hsd_import --config FILE --rgb IMAGE --disparity DISP.png [--name NAME] [--scale S]\n"
-    "           [--near-m N --far-m F | --focal-px F --baseline-m B --doffs-px D] --out DIR\n"
-    "  Lifts an sRGB photograph to reflectance spectra on the config's bands (the\n"
-    "  ColorChecker linear model: plausible, not measured, spectra) and turns a\n"
-    "  disparity map (8/16-bit PNG, 0 = unknown -> masked) into depth Z, either\n"
-    "  calibrated (Z = f B / (d + doffs), full-size pixels) or mapped linearly in\n"
-    "  inverse depth onto [near, far] (defaults: data.generator.depth_min_m and\n"
-    "  depth_max_m). Writes DIR/NAME.exr, NAME_srgb.png, NAME_depth.png and adds\n"
-    "  NAME.exr to DIR/manifest.json (split test).";
+const char* kUsage = usage::kText;
 
 int run(const AppArgs& args) {
   const Config cfg = load_config(args.config_path, args.overrides);

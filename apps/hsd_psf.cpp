@@ -15,15 +15,13 @@
 #include "optics/psf_atlas.h"
 #include "optics/sampling_check.h"
 #include "optics/spectrum.h"
+#include "usage/hsd_psf.h"
 
 using namespace hsd;
 
 namespace {
 
-const char* kUsage =
-    "hsd_psf --config FILE [--set key=VALUE ...] --out DIR\n"
-    "  Simulates the PSF of the configured DOE for every band (optics.wavelengths_nm)\n"
-    "  and depth (optics.depths_m). Writes DIR/psf.pt, DIR/psf_atlas.png, DIR/config.json.";
+const char* kUsage = usage::kText;
 
 void print_energy_table(const torch::Tensor& e, const optics::PsfSpec& spec) {
   std::string line = "energy in window [%]\n  lambda\\z ";

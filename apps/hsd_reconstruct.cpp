@@ -20,21 +20,13 @@
 #include "data/scene_exr.h"
 #include "model/tiled_inference.h"
 #include "model/torchscript_export.h"
+#include "usage/hsd_reconstruct.h"
 
 using namespace hsd;
 
 namespace {
 
-const char* kUsage =
-    "hsd_reconstruct --model reconstructor.pt --input IMAGE [--tile 512 --overlap 32]\n"
-    "                [--context C] [--precision float32|bfloat16] --out DIR\n"
-    "  IMAGE: linear RGB OpenEXR (channels R, G, B) or 8/16-bit PNG (sRGB, decoded\n"
-    "  to linear). Writes DIR/hs.exr (S0.<nm> channels), DIR/depth.exr (Z, metres),\n"
-    "  DIR/hs_srgb.png and DIR/depth.png. Tiles of --tile pixels with --overlap\n"
-    "  pixels blended on each side and --context pixels of input around each tile\n"
-    "  (multiples of 32; default 2*overlap in float32, overlap in bfloat16). --precision bfloat16 runs\n"
-    "  the network in bfloat16 (several times faster on CPUs with native bfloat16,\n"
-    "  ~0.3% mean difference; hsd_bench reconstruct measures it); outputs stay float32.";
+const char* kUsage = usage::kText;
 
 torch::Tensor read_input(const std::string& path) {
   if (!std::filesystem::exists(path)) input_error(path, "no such file (--input)");

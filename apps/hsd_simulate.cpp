@@ -18,17 +18,13 @@
 #include "optics/psf_atlas.h"
 #include "optics/sensor.h"
 #include "optics/spectrum.h"
+#include "usage/hsd_simulate.h"
 
 using namespace hsd;
 
 namespace {
 
-const char* kUsage =
-    "hsd_simulate --config FILE --scene SCENE.exr [--set key=VALUE ...] --out DIR\n"
-    "  Renders the sensor image of a spectral-EXR scene (T.<nm> reflectance lit by\n"
-    "  sensor.illuminant, or S0.<nm> radiance; Z depth in metres; optional mask)\n"
-    "  through the configured DOE. Writes DIR/sensor.exr, DIR/sensor.png,\n"
-    "  DIR/psf_atlas.png and DIR/config.json.";
+const char* kUsage = usage::kText;
 
 int run(const AppArgs& args) {
   const std::string scene_path = args.option("--scene", "");
@@ -36,11 +32,18 @@ int run(const AppArgs& args) {
   const Config cfg = load_config(args.config_path, args.overrides);
   const torch::Device device = resolve_device(cfg.device);
   const auto t0 = std::chrono::steady_clock::now();
+  auto since = [t = t0]() mutable {
+    const auto now = std::chrono::steady_clock::now();
+    const double s = std::chrono::duration<double>(now - t).count();
+    t = now;
+    return s;
+  };
 
   const std::vector<double> bands = cfg.optics.wavelengths_m();
   // Other bands are resampled to the config's by band integration (with a warning).
   const data::SpectralScene scene =
       data::resample_scene_bands(data::read_scene_exr(scene_path), bands, cfg.optics.band_width_m(), scene_path);
+  const double t_read = since();
   setup_threads(cfg.threads);  // inputs are checked: from here on, progress output
   make_dirs(args.out_dir);
 
@@ -63,6 +66,7 @@ int run(const AppArgs& args) {
   const optics::SensorModel model = optics::make_sensor_model(cfg.sensor, spec, cfg.optics.band_width_m());
   const torch::Tensor height = optics::make_doe(cfg.optics, material, cfg.seed, device).height().detach();
   auto gen = at::detail::createCPUGenerator(cfg.seed);
+  const double t_setup = since();
 
   torch::NoGradGuard no_grad;
   const optics::SensorImage img =
@@ -76,11 +80,15 @@ int run(const AppArgs& args) {
   log::info("depth layers occupied (m): " + used + "(" + std::to_string(img.layers.size()) + " of " +
             std::to_string(spec.depths_m.size()) + "; the others were left out)");
 
+  const double t_image = since();
   const torch::Tensor J = img.image[0].cpu();
   data::write_channels_exr(args.out_dir + "/sensor.exr", J, {"R", "G", "B"});
   data::write_srgb_png(args.out_dir + "/sensor.png", J, cfg.sensor.saturation > 0 ? cfg.sensor.saturation : 1.0);
   optics::write_psf_atlas(args.out_dir + "/psf_atlas.png", img.psf, spec.wavelengths_m, used_depths);
   write_resolved_config(cfg, args.out_dir);
+  const double t_write = since();
+  log::info("seconds: scene read " + c10::str(t_read) + ", optics set-up " + c10::str(t_setup) + ", PSFs and image " +
+            c10::str(t_image) + ", outputs " + c10::str(t_write));
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   log::info("wrote " + args.out_dir + "/sensor.exr, sensor.png, psf_atlas.png, config.json (" +
             std::to_string(J.size(1)) + "x" + std::to_string(J.size(2)) + ", " + c10::str(secs) + " s)");

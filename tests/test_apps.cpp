@@ -172,14 +172,26 @@ TEST_CASE("hsd_bench data and train --json measure the data path and a training 
   CHECK(j["sampler_candidates"].get<int64_t>() > 0);
   CHECK(run("hsd_bench data --scenes 0").code == 2);
   const auto [tout, tcode] = capture("cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) +
-                                     "/hsd_bench train --json --config configs/tiny.json --patch 16 --repeats 1 --threads 2"
+                                     "/hsd_bench train --json --profile --config configs/tiny.json --patch 16 --repeats 1 --threads 2"
                                      " --set model.base_width=4 --set model.levels=2 2>/dev/null");
   CHECK(tcode == 0);
   INFO("stdout: " << tout);
   REQUIRE(lines(tout) == 1);
   const auto t = nlohmann::json::parse(tout);
   CHECK(t["seconds_per_step"].get<double>() > 0.0);
+  CHECK(t["seconds_per_step_float32"].get<double>() > 0.0);
+  CHECK(t["seconds_per_step_bfloat16"].get<double>() > 0.0);
   CHECK(t.contains("peak_rss_mib"));
+  // --profile: every phase timed; their sum is the step's work (within the timer's noise and the step's own bookkeeping).
+  REQUIRE(t.contains("profile_seconds"));
+  double sum = 0;
+  for (const char* k : {"PSF forward", "sensor image forward", "network forward", "network backward",
+                        "sensor image backward", "PSF backward", "gradient checks, clipping, Adam"}) {
+    INFO(k);
+    CHECK(t["profile_seconds"][k].get<double>() > 0.0);
+    sum += t["profile_seconds"][k].get<double>();
+  }
+  CHECK(sum < 3.0 * t["seconds_per_step"].get<double>() + 0.05);
   CHECK(run("hsd_bench train --batch 0").code == 2);
   const auto [rout, rcode] = capture("cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) +
                                      "/hsd_bench reconstruct --json --config configs/tiny.json --size 64 --tile 32 --overlap 0"
@@ -187,6 +199,58 @@ TEST_CASE("hsd_bench data and train --json measure the data path and a training 
   CHECK(rcode == 0);
   REQUIRE(lines(rout) == 1);
   CHECK(nlohmann::json::parse(rout)["seconds_per_megapixel"].get<double>() > 0.0);
+}
+
+TEST_CASE("hsd_bench apps times whole processes: the launcher's help and hsd_simulate on one and all layers", "[app][bench]") {
+  const auto [out, code] = capture("cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) +
+                                   "/hsd_bench apps --json --config configs/tiny.json --size 48 --repeats 1 --threads 2 2>/dev/null");
+  CHECK(code == 0);
+  INFO("stdout: " << out);
+  REQUIRE(lines(out) == 1);
+  const auto j = nlohmann::json::parse(out);
+  CHECK(j["seconds_psf_help"].get<double>() > 0.0);
+  CHECK(j["seconds_simulate_one_layer"].get<double>() > 0.0);
+  CHECK(j["seconds_simulate_all_layers"].get<double>() > 0.0);
+  CHECK(j["layers"].get<int64_t>() == 2);
+}
+
+TEST_CASE("the launchers print the usage without the app and start the app with the OpenMP wait policy", "[app]") {
+  for (const std::string app : {"hsd_psf", "hsd_simulate", "hsd_train", "hsd_eval", "hsd_bench", "hsd_curves"}) {
+    INFO(app);
+    const auto [out, code] = capture(std::string(HSD_BIN_DIR) + "/" + app + " --help 2>&1");
+    CHECK(code == 0);
+    CHECK_THAT(out, Catch::StartsWith(app + " "));
+    // The same text as the app's own (libexec), which parses its flags first.
+    const auto [own, own_code] = capture(std::string(HSD_BIN_DIR) + "/../libexec/" + app + " --help 2>&1");
+    CHECK(own_code == 0);
+    CHECK(own == out);
+  }
+  // Anything but a lone --help reaches the app, whose parser answers.
+  const Run r = run("hsd_psf --help --bogus");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.err, Catch::Contains("--bogus"));
+}
+
+TEST_CASE("hsd_curves compares runs' metrics in one plot per column with a table of last values", "[app]") {
+  const fs::path d = fs::temp_directory_path() / "hsd_test_curves";
+  fs::remove_all(d);
+  for (const auto& [name, last] : std::vector<std::pair<std::string, std::string>>{{"a", "0.5"}, {"b", "0.51"}}) {
+    fs::create_directories(d / name);
+    std::ofstream(d / name / "metrics.csv") << "step,wall_s,train_loss,val_loss\n0,0,,0.9\n5,1,0.7,\n10,2,0.6," << last << "\n";
+  }
+  const std::string runs = " --runs " + (d / "a").string() + "," + (d / "b").string();
+  const auto [out, code] = capture(std::string(HSD_BIN_DIR) + "/hsd_curves" + runs + " --columns val_loss --out " +
+                                   (d / "cmp").string() + " 2>/dev/null");
+  CHECK(code == 0);
+  CHECK_THAT(out, Catch::Contains("| b | 0.51 (+2.00%) |"));
+  CHECK(fs::exists(d / "cmp" / "curves.png"));
+  CHECK(fs::exists(d / "cmp" / "val_loss.png"));
+  CHECK(fs::exists(d / "cmp" / "curves.md"));
+  const Run bad = run("hsd_curves" + runs + " --columns val_nothing --out " + (d / "cmp2").string());
+  CHECK(bad.code == 2);
+  CHECK_THAT(bad.err, Catch::Contains("val_nothing"));
+  CHECK(run("hsd_curves --runs " + (d / "none").string() + " --out " + (d / "cmp3").string()).code == 2);
+  fs::remove_all(d);
 }
 
 TEST_CASE("hsd_bench sim --json reports the contract's keys", "[app][bench]") {

@@ -107,6 +107,9 @@ int bench_sim(Config cfg, const AppArgs& args, BenchOutput& out) {
   for (int64_t i = 0; i < depths; ++i)
     o.depths_m.push_back(1.0 / (1.0 / zmin + (1.0 / zmax - 1.0 / zmin) * (depths == 1 ? 0.0 : double(i) / double(depths - 1))));
   const double grid = double(o.doe_samples) * o.doe_pitch_m;
+  if (pupil != o.doe_samples && o.doe.init != "fresnel" && o.doe.init != "spiral" && o.doe.init != "random" &&
+      o.doe.init != "flat")
+    o.doe.init = "fresnel";  // a design file holds the config's grid; the timings do not depend on the heights
   o.doe_samples = pupil;
   o.doe_pitch_m = grid / double(pupil);
   o.psf_size = psf;

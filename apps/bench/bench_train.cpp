@@ -1,8 +1,17 @@
 // hsd_bench train: seconds per training step (PSF + sensor simulation +
 // network forward/backward + Adam on the DOE and the network) and peak memory,
-// for the config (default: the paper's) on --batch patches of --patch pixels;
-// the network alone is timed in the same run for reference.
+// for the config (default: the paper's) on --batch patches of --patch pixels
+// rendered with the config's scene margin around them, as training renders
+// them. The network's two precisions (float32, bfloat16) side by side in the
+// same run, the network alone for reference, and with --profile the step's
+// phases (PSF, sensor, network, loss, the three parts of the backward pass,
+// optimizer) of the config's precision.
+#include <algorithm>
+#include <chrono>
 #include <cstdio>
+#include <functional>
+#include <memory>
+#include <vector>
 
 #include <torch/torch.h>
 
@@ -14,40 +23,129 @@
 
 namespace hsd::bench {
 
+namespace {
+
+struct Row {
+  std::string precision;
+  double step_s = 0, peak_mib = 0, net_s = 0;
+};
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+double seconds(const std::function<void()>& f) {
+  const auto a = std::chrono::steady_clock::now();
+  f();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - a).count();
+}
+
+}  // namespace
+
 int bench_train(Config cfg, const AppArgs& args, BenchOutput& out) {
   const int64_t patch = args.integer("--patch", 256), batch = args.integer("--batch", 1);
   const int repeats = int(args.integer("--repeats", 3));
+  const bool profile = args.has("--profile");
   if (patch < 16 || patch > 2048) input_error("--patch", "must be in [16, 2048]");
   if (batch < 1 || batch > 64) input_error("--batch", "must be in [1, 64]");
+  if (repeats < 1 || repeats > 1000) input_error("--repeats", "must be in [1, 1000]");
   cfg.train.batch_size = batch;
+  cfg.data.patch_size_px = patch;
   const int64_t L = int64_t(cfg.optics.wavelengths_nm.size()), Z = int64_t(cfg.optics.depths_m.size());
+  const int64_t margin = train::render_margin_px(cfg);
   const double rss_start = current_rss_mib();
-  train::Trainer t(cfg);
-  const train::Batch b = striped_batch(cfg, batch, patch);
-  int64_t k = 0;
-  log::info("training steps ...");
-  const double t_step = median_seconds([&] { t.step(b, k++); }, repeats);
-  const double peak = peak_rss_during([&] { t.step(b, k++); });
-  log::info("network alone ...");
+  const train::Batch b = striped_batch(cfg, batch, patch + 2 * margin);
+  // The config's precision first (its peak memory alone, its profile), then
+  // both precisions' steps interleaved (A B A B ...), so that drift in the
+  // machine's speed falls on both alike; medians.
+  std::vector<Config> cfgs{cfg, cfg};
+  std::vector<std::unique_ptr<train::Trainer>> trainers;
+  trainers.push_back(std::make_unique<train::Trainer>(cfgs[0]));
+  cfgs[1].train.precision = trainers[0]->precision().dtype == torch::kBFloat16 ? "float32" : "bfloat16";
+  std::vector<Row> rows(2);
+  std::vector<int64_t> k(2, 0);
+  log::info("peak memory of a step (" + std::string(trainers[0]->precision().dtype == torch::kBFloat16 ? "bfloat16" : "float32") + ") ...");
+  trainers[0]->step(b, k[0]++);  // warm-up
+  rows[0].peak_mib = peak_rss_during([&] { trainers[0]->step(b, k[0]++); });
+  trainers.push_back(std::make_unique<train::Trainer>(cfgs[1]));
+  trainers[1]->step(b, k[1]++);
+  std::vector<std::vector<double>> t_step(2), t_net(2);
   const torch::Tensor x = torch::rand({batch, 3, patch, patch});
-  const double t_net = median_seconds([&] {
-    const auto o = t.net()->forward(x);
-    (o.hs.mean() + o.depth_m.mean()).backward();
-  }, repeats);
-  out.json = Json{{"bench", "train"}, {"threads", torch::get_num_threads()}, {"patch", patch}, {"batch", batch},
-                  {"bands", L}, {"depths", Z}, {"psf", cfg.optics.psf_size}, {"pupil", cfg.optics.doe_samples},
-                  {"base_width", cfg.model.base_width}, {"levels", cfg.model.levels}, {"seconds_per_step", t_step},
-                  {"seconds_network_fwd_bwd", t_net}, {"peak_rss_mib", peak}, {"rss_at_start_mib", rss_start}};
-  char buf[512];
+  log::info("training steps and the network alone, float32 and bfloat16 interleaved ...");
+  for (int i = 0; i < repeats; ++i)
+    for (size_t r = 0; r < 2; ++r) {
+      train::Trainer& t = *trainers[r];
+      t_step[r].push_back(seconds([&] { t.step(b, k[r]++); }));
+      t_net[r].push_back(seconds([&] {
+        const auto o = t.net()->forward(x);
+        (o.hs.mean() + o.depth_m.mean()).backward();
+      }));
+    }
+  for (size_t r = 0; r < 2; ++r) {
+    rows[r].precision = trainers[r]->precision().dtype == torch::kBFloat16 ? "bfloat16" : "float32";
+    rows[r].step_s = median(t_step[r]);
+    rows[r].net_s = median(t_net[r]);
+  }
+  train::StepProfile prof;
+  if (profile) {
+    log::info("profiled steps (" + rows[0].precision + ") ...");
+    trainers[0]->set_profile(&prof);
+    for (int i = 0; i < repeats; ++i) trainers[0]->step(b, k[0]++);
+    trainers[0]->set_profile(nullptr);
+  }
+  const Row& f32 = rows[0].precision == "float32" ? rows[0] : rows[1];
+  const Row& bf16 = rows[0].precision == "float32" ? rows[1] : rows[0];
+
+  out.json = Json{{"bench", "train"}, {"threads", torch::get_num_threads()}, {"patch", patch}, {"margin", margin},
+                  {"batch", batch}, {"bands", L}, {"depths", Z}, {"psf", cfg.optics.psf_size},
+                  {"pupil", cfg.optics.doe_samples}, {"base_width", cfg.model.base_width}, {"levels", cfg.model.levels},
+                  {"precision", rows[0].precision}, {"seconds_per_step", rows[0].step_s},
+                  {"seconds_network_fwd_bwd", rows[0].net_s}, {"peak_rss_mib", rows[0].peak_mib},
+                  {"rss_at_start_mib", rss_start}, {"seconds_per_step_float32", f32.step_s},
+                  {"seconds_per_step_bfloat16", bf16.step_s}, {"seconds_network_fwd_bwd_float32", f32.net_s},
+                  {"seconds_network_fwd_bwd_bfloat16", bf16.net_s}};
+  char buf[1024];
   std::snprintf(buf, sizeof buf,
-                "training step: %lld x %lld px patch(es), batch %lld, %lld bands, %lld depths, PSF %lld, pupil %lld, "
-                "U-Net width %lld x %lld levels, threads %d\n"
-                "step (PSF + sensor + network + Adam)  %7.3f s   peak RSS %.0f MiB\n"
-                "network alone, forward+backward       %7.3f s\n",
-                (long long)patch, (long long)patch, (long long)batch, (long long)L, (long long)Z,
+                "training step: %lld x %lld px patch(es) rendered with %lld px of scene around them, batch %lld, "
+                "%lld bands, %lld depths, PSF %lld, pupil %lld, U-Net width %lld x %lld levels, threads %d\n"
+                "network precision     step (PSF + sensor + network + Adam)   network alone fwd+bwd   peak RSS\n",
+                (long long)patch, (long long)patch, (long long)margin, (long long)batch, (long long)L, (long long)Z,
                 (long long)cfg.optics.psf_size, (long long)cfg.optics.doe_samples, (long long)cfg.model.base_width,
-                (long long)cfg.model.levels, torch::get_num_threads(), t_step, peak, t_net);
+                (long long)cfg.model.levels, torch::get_num_threads());
   out.text = buf;
+  for (const Row& r : rows) {
+    std::snprintf(buf, sizeof buf, "%-9s%s %18.3f s %32.3f s %15s\n", r.precision.c_str(),
+                  &r == &rows[0] ? " (config)" : "         ", r.step_s, r.net_s,
+                  r.peak_mib > 0 ? (std::to_string(int(r.peak_mib + 0.5)) + " MiB").c_str() : "");
+    out.text += buf;
+  }
+  std::snprintf(buf, sizeof buf, "float32 / bfloat16: step %.2fx, network %.2fx\n", f32.step_s / bf16.step_s,
+                f32.net_s / bf16.net_s);
+  out.text += buf;
+
+  if (profile) {
+    const double n = double(std::max<int64_t>(prof.steps, 1));
+    const std::vector<std::pair<std::string, double>> phases{
+        {"PSF forward", prof.psf_forward},         {"sensor image forward", prof.sensor_forward},
+        {"network forward", prof.network_forward}, {"loss (and its read-out)", prof.loss},
+        {"network backward", prof.network_backward}, {"sensor image backward", prof.sensor_backward},
+        {"PSF backward", prof.psf_backward},       {"gradient checks, clipping, Adam", prof.optimizer}};
+    double sum = 0;
+    for (const auto& p : phases) sum += p.second / n;
+    std::snprintf(buf, sizeof buf, "\nphases of the step (%s, mean of %lld profiled steps):\n", rows[0].precision.c_str(),
+                  (long long)prof.steps);
+    out.text += buf;
+    Json jp = Json::object();
+    for (const auto& [name, total] : phases) {
+      std::snprintf(buf, sizeof buf, "  %-34s %8.3f s  %5.1f%%\n", name.c_str(), total / n, 100.0 * total / n / sum);
+      out.text += buf;
+      jp[name] = total / n;
+    }
+    std::snprintf(buf, sizeof buf, "  %-34s %8.3f s\n", "sum", sum);
+    out.text += buf;
+    out.json["profile_seconds"] = jp;
+  }
   return 0;
 }
 
