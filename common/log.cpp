@@ -21,8 +21,8 @@ int warning_count() { return g_warnings; }
 void set_quiet(bool quiet) { g_quiet = quiet; }
 
 Progress::Progress(std::string label, long total)
-    : label_(std::move(label)), total_(total > 0 ? total : 1),
-      start_(std::chrono::steady_clock::now()), last_(start_), tty_(isatty(fileno(stderr)) != 0) {}
+    : label_(std::move(label)), total_(total > 0 ? total : 1), tty_(isatty(fileno(stderr)) != 0),
+      start_(std::chrono::steady_clock::now()), last_(start_) {}
 
 void Progress::step(long n) {
   done_ += n;
