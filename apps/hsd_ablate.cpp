@@ -9,7 +9,6 @@
 // differences marked where they exceed two standard errors), DIR/ablation.csv
 // and DIR/error_vs_time.png (validation loss against wall-clock time, all arms).
 #include <algorithm>
-#include <cerrno>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -18,8 +17,6 @@
 #include <fstream>
 #include <map>
 #include <sstream>
-#include <spawn.h>
-#include <sys/wait.h>
 
 #include <torch/torch.h>
 
@@ -27,11 +24,10 @@
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/log.h"
+#include "common/subprocess.h"
 #include "train/metrics_csv.h"
 #include "train/plot.h"
 #include "usage/hsd_ablate.h"
-
-extern char** environ;
 
 using namespace hsd;
 namespace fs = std::filesystem;
@@ -51,20 +47,9 @@ void run_or_fail(const std::vector<std::string>& argv, const std::string& what) 
   std::string shown = "$";
   for (const auto& a : argv) shown += " " + a;
   log::info(shown);
-  std::vector<char*> cargv;
-  for (const auto& a : argv) cargv.push_back(const_cast<char*>(a.c_str()));
-  cargv.push_back(nullptr);
-  pid_t pid = 0;
-  if (posix_spawn(&pid, cargv[0], nullptr, nullptr, cargv.data(), environ) != 0)
-    throw NumericalError(what + ": could not start " + argv[0]);
-  int status = 0;
-  while (waitpid(pid, &status, 0) < 0)
-    if (errno != EINTR) throw NumericalError(what + ": lost its process");
-  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0)
-    throw NumericalError(what + " failed (" +
-                         (WIFEXITED(status) ? "exit status " + std::to_string(WEXITSTATUS(status))
-                                            : "signal " + std::to_string(WTERMSIG(status))) +
-                         "); see its output above");
+  const ProcessEnd end = run_process(argv);
+  if (!end.started) throw NumericalError(what + ": could not start " + argv[0]);
+  if (!end.ok()) throw NumericalError(what + " failed (" + end.describe() + "); see its output above");
 }
 
 // (wall_s, val_loss) pairs of a metrics.csv.

@@ -3,7 +3,8 @@
 // With --json, stdout holds exactly one JSON object (logs go to stderr).
 #include <cstdio>
 #include <filesystem>
-#include <set>
+#include <algorithm>
+#include <vector>
 
 #include <torch/torch.h>
 
@@ -22,8 +23,12 @@ const char* kUsage = usage::kText;
 int run(const AppArgs& args) {
   if (args.positional.size() != 1) input_error("hsd_bench", "expected one benchmark NAME (see --help)");
   const std::string name = args.positional[0];
-  static const std::set<std::string> kNames{"psf", "sim", "data", "train", "dist", "reconstruct", "accuracy", "apps"};
-  if (!kNames.count(name)) input_error("hsd_bench " + name, "unknown benchmark (known: psf, sim, data, train, dist, reconstruct, accuracy, apps)");
+  static const std::vector<std::string> kNames{"psf", "sim", "data", "train", "dist", "reconstruct", "accuracy", "apps"};
+  if (std::find(kNames.begin(), kNames.end(), name) == kNames.end()) {
+    std::string known;
+    for (const auto& n : kNames) known += (known.empty() ? "" : ", ") + n;
+    input_error("hsd_bench " + name, "unknown benchmark (known: " + known + ")");
+  }
   const bool json = args.has("--json");
   if (json) log::set_quiet(true);
   const std::string config = args.config_path.empty() ? std::string(HSD_SOURCE_DIR) + "/configs/paper.json" : args.config_path;

@@ -221,24 +221,21 @@ LowRankKernel factor_tilt_kernel(const torch::Tensor& tilt, double rel_tol, c10:
   // σ² ≥ 1e-14 σ_0², above float64's rounding of G (~1e-16 σ_0²). Several
   // times faster than an SVD of T, and a scene pays it once per band it uses.
   const torch::Tensor T = tilt.to(torch::kComplexDouble);
+  torch::Tensor U, S, Vh;  // Vh only from an SVD
   if (T.size(0) > T.size(1) || rel_tol < 1e-7) {  // the Gram route needs M ≤ N and a cut above its rounding
-    const auto svd = torch::linalg_svd(T, /*full_matrices=*/false);
-    const torch::Tensor U = std::get<0>(svd), S = std::get<1>(svd), Vh = std::get<2>(svd);
-    const int64_t r = std::max<int64_t>(1, (S > rel_tol * S[0].item<double>()).sum().item<int64_t>());
-    LowRankKernel k;
-    k.left = (U.narrow(1, 0, r) * S.narrow(0, 0, r).to(torch::kComplexDouble).view({1, r})).to(complex_dtype).contiguous();
-    k.right = Vh.narrow(0, 0, r).to(complex_dtype).contiguous();
-    return k;
+    std::tie(U, S, Vh) = torch::linalg_svd(T, /*full_matrices=*/false);
+  } else {
+    const auto eig = torch::linalg_eigh(torch::mm(T, T.conj().transpose(0, 1)));  // ascending eigenvalues
+    S = std::get<0>(eig).flip(0).clamp_min(0.0).sqrt();
+    U = std::get<1>(eig).flip(1);
   }
-  const torch::Tensor G = torch::mm(T, T.conj().transpose(0, 1));
-  const auto eig = torch::linalg_eigh(G);  // ascending eigenvalues
-  const torch::Tensor lam = std::get<0>(eig).flip(0).clamp_min(0.0), U = std::get<1>(eig).flip(1);
-  const torch::Tensor S = lam.sqrt();
   const int64_t r = std::max<int64_t>(1, (S > rel_tol * S[0].item<double>()).sum().item<int64_t>());
   const torch::Tensor Ur = U.narrow(1, 0, r), Sr = S.narrow(0, 0, r).to(torch::kComplexDouble);
   LowRankKernel k;
   k.left = (Ur * Sr.view({1, r})).to(complex_dtype).contiguous();
-  k.right = (torch::mm(Ur.conj().transpose(0, 1), T) / Sr.view({r, 1})).to(complex_dtype).contiguous();
+  k.right = (Vh.defined() ? Vh.narrow(0, 0, r) : torch::mm(Ur.conj().transpose(0, 1), T) / Sr.view({r, 1}))
+                .to(complex_dtype)
+                .contiguous();
   return k;
 }
 

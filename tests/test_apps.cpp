@@ -27,6 +27,16 @@ using test::capture;
 using test::Run;
 using test::run;
 int lines(const std::string& s) { return int(std::count(s.begin(), s.end(), '\n')); }
+
+// `hsd_bench ARGS --json` run from the source folder: exit 0 and exactly one JSON object on stdout.
+nlohmann::json bench_json(const std::string& args) {
+  const auto [out, code] = capture("cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) +
+                                   "/hsd_bench " + args + " --json 2>/dev/null");
+  CHECK(code == 0);
+  INFO("stdout: " << out);
+  REQUIRE(lines(out) == 1);
+  return nlohmann::json::parse(out);
+}
 }  // namespace
 
 TEST_CASE("hsd_psf writes the contract's psf.pt and atlas and config", "[app]") {
@@ -88,13 +98,7 @@ TEST_CASE("bad input is exit 2 with one line naming the key or file", "[app]") {
 }
 
 TEST_CASE("hsd_bench psf --json prints exactly one JSON object on stdout", "[app][bench]") {
-  const std::string cmd = "cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) +
-                          "/hsd_bench psf --json --config configs/tiny.json --repeats 1 2>/dev/null";
-  const auto [out, code] = capture(cmd);
-  CHECK(code == 0);
-  INFO("stdout: " << out);
-  REQUIRE(lines(out) == 1);
-  const auto j = nlohmann::json::parse(out);
+  const auto j = bench_json("psf --config configs/tiny.json --repeats 1");
   REQUIRE(j.is_object());
   for (const char* k : {"threads", "seconds_fwd", "seconds_fwd_bwd", "peak_rss_mib", "psf_rel_l1_max", "psf_rel_l1_mean"})
     CHECK(j.contains(k));
@@ -158,26 +162,16 @@ TEST_CASE("hsd_simulate refuses bad scenes with exit 2 naming the file", "[app][
 }
 
 TEST_CASE("hsd_bench data and train --json measure the data path and a training step", "[app][bench][data]") {
-  const auto [out, code] = capture("cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) +
-                                   "/hsd_bench data --json --config configs/tiny.json --scenes 2 --threads 2"
-                                   " --set data.generator.width_px=64 --set data.generator.height_px=48"
-                                   " --set data.patch_size_px=16 --set data.patches=100 2>/dev/null");
-  CHECK(code == 0);
-  INFO("stdout: " << out);
-  REQUIRE(lines(out) == 1);
-  const auto j = nlohmann::json::parse(out);
+  const auto j = bench_json("data --config configs/tiny.json --scenes 2 --threads 2"
+                            " --set data.generator.width_px=64 --set data.generator.height_px=48"
+                            " --set data.patch_size_px=16 --set data.patches=100");
   for (const char* k : {"seconds_generate_per_scene", "seconds_load_1_thread", "seconds_load_n_threads",
                         "seconds_draw_patches", "seconds_extract_per_patch", "sampler_candidates", "threads"})
     CHECK(j.contains(k));
   CHECK(j["sampler_candidates"].get<int64_t>() > 0);
   CHECK(run("hsd_bench data --scenes 0").code == 2);
-  const auto [tout, tcode] = capture("cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) +
-                                     "/hsd_bench train --json --profile --config configs/tiny.json --patch 16 --repeats 1 --threads 2"
-                                     " --set model.base_width=4 --set model.levels=2 2>/dev/null");
-  CHECK(tcode == 0);
-  INFO("stdout: " << tout);
-  REQUIRE(lines(tout) == 1);
-  const auto t = nlohmann::json::parse(tout);
+  const auto t = bench_json("train --profile --config configs/tiny.json --patch 16 --repeats 1 --threads 2"
+                            " --set model.base_width=4 --set model.levels=2");
   CHECK(t["seconds_per_step"].get<double>() > 0.0);
   CHECK(t["seconds_per_step_float32"].get<double>() > 0.0);
   CHECK(t["seconds_per_step_bfloat16"].get<double>() > 0.0);
@@ -193,21 +187,13 @@ TEST_CASE("hsd_bench data and train --json measure the data path and a training 
   }
   CHECK(sum < 3.0 * t["seconds_per_step"].get<double>() + 0.05);
   CHECK(run("hsd_bench train --batch 0").code == 2);
-  const auto [rout, rcode] = capture("cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) +
-                                     "/hsd_bench reconstruct --json --config configs/tiny.json --size 64 --tile 32 --overlap 0"
-                                     " --threads 2 --set model.base_width=4 --set model.levels=2 2>/dev/null");
-  CHECK(rcode == 0);
-  REQUIRE(lines(rout) == 1);
-  CHECK(nlohmann::json::parse(rout)["seconds_per_megapixel"].get<double>() > 0.0);
+  const auto r = bench_json("reconstruct --config configs/tiny.json --size 64 --tile 32 --overlap 0"
+                            " --threads 2 --set model.base_width=4 --set model.levels=2");
+  CHECK(r["seconds_per_megapixel"].get<double>() > 0.0);
 }
 
 TEST_CASE("hsd_bench apps times whole processes: the launcher's help and hsd_simulate on one and all layers", "[app][bench]") {
-  const auto [out, code] = capture("cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) +
-                                   "/hsd_bench apps --json --config configs/tiny.json --size 48 --repeats 1 --threads 2 2>/dev/null");
-  CHECK(code == 0);
-  INFO("stdout: " << out);
-  REQUIRE(lines(out) == 1);
-  const auto j = nlohmann::json::parse(out);
+  const auto j = bench_json("apps --config configs/tiny.json --size 48 --repeats 1 --threads 2");
   CHECK(j["seconds_psf_help"].get<double>() > 0.0);
   CHECK(j["seconds_simulate_one_layer"].get<double>() > 0.0);
   CHECK(j["seconds_simulate_all_layers"].get<double>() > 0.0);
@@ -254,13 +240,7 @@ TEST_CASE("hsd_curves compares runs' metrics in one plot per column with a table
 }
 
 TEST_CASE("hsd_bench sim --json reports the contract's keys", "[app][bench]") {
-  const auto [out, code] = capture("cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) +
-                                   "/hsd_bench sim --json --patch 32 --bands 3 --depths 3 --psf 9 --pupil 64 "
-                                   "--repeats 1 --threads 2 2>/dev/null");
-  CHECK(code == 0);
-  INFO("stdout: " << out);
-  REQUIRE(lines(out) == 1);
-  const auto j = nlohmann::json::parse(out);
+  const auto j = bench_json("sim --patch 32 --bands 3 --depths 3 --psf 9 --pupil 64 --repeats 1 --threads 2");
   for (const char* k : {"seconds_fwd_bwd", "peak_rss_mib", "seconds_floor", "baseline_seconds_fwd_bwd", "patch", "bands",
                         "depths", "psf", "pupil", "threads", "seconds_fwd_bwd_one_layer"})
     CHECK(j.contains(k));

@@ -3,13 +3,8 @@
 // the same --size² scene occupying one depth layer and all of the config's
 // layers, side by side, medians of --repeats runs each, interleaved. What the
 // simulator leaves out for the one-layer scene must show in the whole process.
-#include <fcntl.h>
-#include <spawn.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
-#include <algorithm>
-#include <chrono>
 #include <cstdio>
 #include <filesystem>
 
@@ -20,9 +15,8 @@
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/log.h"
+#include "common/subprocess.h"
 #include "data/scene_exr.h"
-
-extern char** environ;
 
 namespace hsd::bench {
 
@@ -32,33 +26,14 @@ namespace fs = std::filesystem;
 
 // Runs argv (stdout and stderr dropped) and returns the wall seconds; throws when it fails.
 double run_seconds(const std::vector<std::string>& args) {
-  std::vector<std::string> a = args;
-  std::vector<char*> argv;
-  for (auto& s : a) argv.push_back(s.data());
-  argv.push_back(nullptr);
-  posix_spawn_file_actions_t fa;
-  posix_spawn_file_actions_init(&fa);
-  posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
-  posix_spawn_file_actions_addopen(&fa, 2, "/dev/null", O_WRONLY, 0);
-  pid_t pid = 0;
-  const auto t0 = std::chrono::steady_clock::now();
-  const int rc = posix_spawn(&pid, a[0].c_str(), &fa, nullptr, argv.data(), environ);
-  posix_spawn_file_actions_destroy(&fa);
-  if (rc != 0) throw std::runtime_error("hsd_bench apps: could not start " + a[0] + " (posix_spawn error " + std::to_string(rc) + ")");
-  int status = 0;
-  waitpid(pid, &status, 0);
-  const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+  ProcessEnd end;
+  const double s = seconds([&] { end = run_process(args, /*quiet=*/true); });
+  if (!end.ok()) {
     std::string shown;
     for (const auto& x : args) shown += " " + x;
-    throw std::runtime_error("hsd_bench apps: a run failed (exit " + std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) + "):" + shown);
+    throw std::runtime_error("hsd_bench apps: a run failed (" + end.describe() + "):" + shown);
   }
   return s;
-}
-
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
 }
 
 // A reflectance scene of size² px in the config's bands: smooth random

@@ -30,17 +30,6 @@ struct Row {
   double step_s = 0, peak_mib = 0, net_s = 0;
 };
 
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
-
-double seconds(const std::function<void()>& f) {
-  const auto a = std::chrono::steady_clock::now();
-  f();
-  return std::chrono::duration<double>(std::chrono::steady_clock::now() - a).count();
-}
-
 }  // namespace
 
 int bench_train(Config cfg, const AppArgs& args, BenchOutput& out) {

@@ -19,16 +19,22 @@ train::Batch striped_batch(const Config& cfg, int64_t batch, int64_t patch) {
   return b;
 }
 
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+double seconds(const std::function<void()>& f) {
+  const auto a = std::chrono::steady_clock::now();
+  f();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - a).count();
+}
+
 double median_seconds(const std::function<void()>& f, int repeats, bool warmup) {
   if (warmup) f();
   std::vector<double> t;
-  for (int i = 0; i < std::max(1, repeats); ++i) {
-    const auto a = std::chrono::steady_clock::now();
-    f();
-    t.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - a).count());
-  }
-  std::sort(t.begin(), t.end());
-  return t[t.size() / 2];
+  for (int i = 0; i < std::max(1, repeats); ++i) t.push_back(seconds(f));
+  return median(std::move(t));
 }
 
 namespace {

@@ -13,6 +13,10 @@ namespace hsd::bench {
 // radiance (seeded by the config), depth in vertical stripes over every layer.
 train::Batch striped_batch(const Config& cfg, int64_t batch, int64_t patch);
 
+// The median of v (non-empty), and the wall seconds one call of f takes.
+double median(std::vector<double> v);
+double seconds(const std::function<void()>& f);
+
 // Runs f `repeats` times (after one untimed warm-up if warmup) and returns the median seconds.
 double median_seconds(const std::function<void()>& f, int repeats, bool warmup = true);
 
