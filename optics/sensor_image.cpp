@@ -62,15 +62,6 @@ void check_shapes(const torch::Tensor& radiance, const torch::Tensor& masks, con
 
 }  // namespace
 
-int64_t fast_fft_size(int64_t n) {
-  for (int64_t m = std::max<int64_t>(n, 1);; ++m) {
-    int64_t k = m;
-    for (int64_t p : {2, 3, 5})
-      while (k % p == 0) k /= p;
-    if (k == 1) return m;
-  }
-}
-
 namespace {
 
 // OTFs of kernels [..., P, P] for real FFTs of size (nh, nw), kernel centre at (0, 0).

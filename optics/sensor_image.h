@@ -16,12 +16,9 @@
 
 #include <torch/types.h>
 
-namespace hsd::optics {
+#include "common/fft_size.h"  // the convolutions' FFT size
 
-// Smallest 2^a 3^b 5^c >= n. The convolution FFTs use this size (a linear
-// convolution only needs n >= H + 2r); sizes with a large prime factor, such as
-// 318 = 2·3·53 for a 256 patch and a 63-pixel PSF, are several times slower.
-int64_t fast_fft_size(int64_t n);
+namespace hsd::optics {
 
 // Index of the nearest layer in inverse depth: depth_m [B, 1, H, W] (metres,
 // finite and > 0, else InputError naming the problem) -> int64 [B, 1, H, W].

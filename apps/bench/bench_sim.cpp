@@ -40,7 +40,7 @@ struct FloorWork {
   FloorWork(const optics::PsfSpec& spec, const std::vector<int64_t>& ranks, int64_t layers_, int64_t patch)
       : layers(layers_) {
     const int64_t N = spec.doe_samples, P = spec.psf_size, r = P / 2, L = int64_t(spec.wavelengths_m.size());
-    nh = optics::fast_fft_size(patch + 2 * r);
+    nh = fast_fft_size(patch + 2 * r);
     const auto c = torch::TensorOptions().dtype(torch::kComplexFloat);
     field = torch::randn({N, N}, c);
     // With the cross term of the cell integration the low-rank kernels carry G = 2 terms.
