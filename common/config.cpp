@@ -336,6 +336,11 @@ Config parse_config(const Json& resolved) {
     M.head_init = m->get_string("head_init", M.head_init);
     if (M.head_init != "baselines" && M.head_init != "random")
       m->fail("head_init", "expected \"baselines\" or \"random\", got \"" + M.head_init + "\"");
+    M.preinverse = m->get_string("preinverse", M.preinverse);
+    if (M.preinverse != "none" && M.preinverse != "wiener")
+      m->fail("preinverse", "expected \"none\" or \"wiener\", got \"" + M.preinverse + "\"");
+    M.preinverse_reg = m->get_number("preinverse_reg", M.preinverse_reg);
+    if (!(M.preinverse_reg >= 1e-8 && M.preinverse_reg <= 1e3)) m->fail("preinverse_reg", "must be in [1e-8, 1e3]");
   }
   if (auto t = r.optional_child("train")) {
     auto& T = c.train;

@@ -120,6 +120,12 @@ struct ModelConfig {
   // baselines and every step is measured from them. "random": torch's default
   // initialisation of the heads (the paper's code).
   std::string head_init = "baselines";
+  // "wiener": the sensor image's Wiener deconvolution with every depth layer's
+  // RGB PSF is input beside it (model/wiener_preinverse.h; 3 channels per
+  // layer of optics.depths_m), computed from the current DOE each step.
+  // "none": the image alone (the paper's network).
+  std::string preinverse = "none";
+  double preinverse_reg = 1e-2;  // the Wiener regulariser ρ (noise-to-signal power)
 };
 
 // Joint training of DOE and network (train/trainer.h).

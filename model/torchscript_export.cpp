@@ -57,6 +57,39 @@ torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
   for (const auto& [k, v] : meta.numbers) m.register_attribute(k, c10::FloatType::get(), v);
 
   const int64_t L = opt.levels, mult = int64_t(1) << L;
+  const bool pre = opt.preinverse_layers > 0;
+  if (pre) {
+    // The Wiener pre-inversion (wiener_preinverse.cpp, line for line) with the
+    // PSFs of the DOE the network was trained with, fixed from now on.
+    if (!net->preinverse_psf().defined())
+      throw InputError("export: the network's pre-inversion PSFs are not set (load a checkpoint first)");
+    m.register_buffer("preinverse_psf", net->preinverse_psf().detach().to(torch::kFloat32).clone());
+    m.define(
+        "def fast_fft_size(self, n: int) -> int:\n"
+        "        m = n\n        done = False\n"
+        "        while not done:\n"
+        "            k = m\n"
+        "            for p in [2, 3, 5]:\n"
+        "                while k % p == 0:\n"
+        "                    k = k // p\n"
+        "            if k == 1:\n                done = True\n            else:\n                m += 1\n"
+        "        return m\n");
+    std::ostringstream w;
+    w << "def preinverse(self, image: Tensor) -> Tensor:\n"
+      << "        B = image.size(0)\n        C = image.size(1)\n        H = image.size(2)\n        W = image.size(3)\n"
+      << "        K = self.preinverse_psf.size(0)\n        P = self.preinverse_psf.size(2)\n        r = P // 2\n"
+      << "        nh = self.fast_fft_size(H + 2 * r)\n        nw = self.fast_fft_size(W + 2 * r)\n"
+      << "        x = torch.replication_pad2d(image, [r, nw - W - r, r, nh - H - r])\n"
+      << "        k = torch.constant_pad_nd(self.preinverse_psf, [0, nw - P, 0, nh - P], 0.0)\n"
+      << "        k = torch.roll(k, [-r, -r], [2, 3])\n"
+      << "        Hf = torch.fft_rfft2(k)\n"
+      << "        power = torch.real(Hf).square() + torch.imag(Hf).square()\n"
+      << "        G = torch.conj(Hf) / (power + " << c10::str(opt.preinverse_reg) << ")\n"
+      << "        Y = torch.fft_rfft2(x).unsqueeze(1)\n"
+      << "        X = torch.fft_irfft2(Y * G.unsqueeze(0), [nh, nw])\n"
+      << "        return X[:, :, :, r:r + H, r:r + W].reshape([B, K * C, H, W])\n";
+    m.define(w.str());
+  }
   std::ostringstream o;
   o << "def forward(self, image: Tensor) -> Tuple[Tensor, Tensor]:\n"
     << "        B = image.size(0)\n        C = image.size(1)\n        H = image.size(2)\n        W = image.size(3)\n"
@@ -65,7 +98,9 @@ torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
     // The network runs in the dtype of its weights (float32 as exported; bfloat16
     // after set_reconstructor_precision), in the input's memory format (`to`
     // keeps it; run_reconstructor passes channels-last); the outputs are float32.
-    << "        x = image\n"
+    << "        x = image\n";
+  if (pre) o << "        x = torch.cat([image, self.preinverse(image.float()).to(image.dtype)], 1)\n";
+  o
     << "        if ph > 0 or pw > 0:\n"
     << "            if ph < H and pw < W:\n"
     << "                x = torch.reflection_pad2d(x, [0, pw, 0, ph])\n"
@@ -111,7 +146,9 @@ void set_reconstructor_precision(torch::jit::Module& m, c10::ScalarType dtype) {
     throw InputError("reconstructor precision must be float32 or bfloat16");
   torch::NoGradGuard ng;
   auto convert = [&](const std::string& name, torch::Tensor t) {
-    if (name.find("upsampling") != std::string::npos || !t.is_floating_point()) return;  // the residual stays float32
+    if (name.find("upsampling") != std::string::npos || name.find("preinverse") != std::string::npos ||
+        !t.is_floating_point())
+      return;  // the residual and the pre-inversion stay float32
     torch::Tensor v = t.detach().to(dtype);
     if (v.dim() == 4) v = v.contiguous(at::MemoryFormat::ChannelsLast);
     t.set_data(v);

@@ -5,6 +5,7 @@
 
 #include "model/spectral_upsampling.h"
 #include "model/sync_batch_norm.h"
+#include "model/wiener_preinverse.h"
 
 namespace hsd::model {
 
@@ -52,13 +53,17 @@ torch::Tensor HsdNetImpl::run_block(torch::nn::Sequential& block, torch::Tensor 
 
 HsdNetImpl::HsdNetImpl(const NetOptions& options, const torch::Tensor& upsampling_weights) : opt_(options) {
   TORCH_CHECK(opt_.levels >= 1 && opt_.levels <= 8, "levels must be in [1, 8]");
+  TORCH_CHECK(opt_.preinverse_layers >= 0 && (opt_.preinverse_layers == 0 || opt_.preinverse_reg > 0),
+              "preinverse_layers must be >= 0 and preinverse_reg > 0");
   TORCH_CHECK(upsampling_weights.dim() == 2 && upsampling_weights.size(0) == opt_.bands &&
                   upsampling_weights.size(1) == opt_.in_channels,
               "upsampling weights must be [bands, in_channels]");
   std::vector<int64_t> width;
   for (int64_t l = 0; l <= opt_.levels; ++l) width.push_back(opt_.base_width << l);
   for (int64_t l = 0; l < opt_.levels; ++l)
-    down_.push_back(register_module("down" + std::to_string(l), block(l == 0 ? opt_.in_channels : width[size_t(l - 1)], width[size_t(l)])));
+    down_.push_back(register_module(
+        "down" + std::to_string(l),
+        block(l == 0 ? opt_.in_channels * (1 + opt_.preinverse_layers) : width[size_t(l - 1)], width[size_t(l)])));
   bottom_ = register_module("bottom", block(width[size_t(opt_.levels - 1)], width[size_t(opt_.levels)]));
   for (int64_t l = opt_.levels - 1; l >= 0; --l) {
     const std::string s = std::to_string(l);
@@ -78,12 +83,31 @@ void HsdNetImpl::set_replica_group(const std::shared_ptr<ReplicaGroup>& group) {
     if (auto* bn = m->as<SyncBatchNorm2dImpl>()) bn->set_replica_group(group);
 }
 
-NetOutput HsdNetImpl::forward(const torch::Tensor& image) {
+void HsdNetImpl::set_preinverse_psf(const torch::Tensor& rgb_psf) {
+  TORCH_CHECK(rgb_psf.dim() == 4 && rgb_psf.size(0) == opt_.preinverse_layers && rgb_psf.size(1) == opt_.in_channels,
+              "pre-inversion PSFs must be [", opt_.preinverse_layers, ", ", opt_.in_channels, ", P, P], got ",
+              rgb_psf.sizes());
+  preinverse_psf_ = rgb_psf;
+}
+
+torch::Tensor HsdNetImpl::preinverse(const torch::Tensor& image) const {
+  TORCH_CHECK(preinverse_psf_.defined(), "HsdNet: the pre-inversion is on but set_preinverse_psf was not called");
+  return wiener_preinverse(image, preinverse_psf_, opt_.preinverse_reg).to(image.scalar_type());
+}
+
+NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& preinverse_in) {
   TORCH_CHECK(image.dim() == 4 && image.size(1) == opt_.in_channels, "network input must be [B, ", opt_.in_channels,
               ", H, W], got ", image.sizes());
   const int64_t H = image.size(2), W = image.size(3), m = int64_t(1) << opt_.levels;
   const int64_t ph = (m - H % m) % m, pw = (m - W % m) % m;
   torch::Tensor x = image;
+  if (opt_.preinverse_layers > 0) {
+    const torch::Tensor p = preinverse_in.defined() ? preinverse_in : preinverse(image);
+    TORCH_CHECK(p.dim() == 4 && p.size(0) == image.size(0) && p.size(1) == opt_.in_channels * opt_.preinverse_layers &&
+                    p.size(2) == H && p.size(3) == W,
+                "pre-inversion input must be [B, ", opt_.in_channels * opt_.preinverse_layers, ", H, W], got ", p.sizes());
+    x = torch::cat({image, p}, 1);
+  }
   if (ph || pw) {  // reflect needs pad < size; replicate always works
     F::PadFuncOptions o({0, pw, 0, ph});
     if (ph < H && pw < W) o.mode(torch::kReflect);

@@ -34,6 +34,11 @@ struct NetOptions {
   std::string norm = "batch";      // "batch" | "group" | "none"
   double depth_min_m = 0.4, depth_max_m = 2.0;
   torch::ScalarType train_dtype = torch::kFloat32;  // kFloat32 | kBFloat16: the convolutions' dtype in training mode
+  // Wiener pre-inversion (wiener_preinverse.h): 0 = off (the paper's network);
+  // K > 0 = the image's deconvolutions for K depth layers are input beside it
+  // (in_channels·(1 + K) channels into the first block).
+  int64_t preinverse_layers = 0;
+  double preinverse_reg = 1e-2;    // ρ, the Wiener regulariser
 };
 
 struct NetOutput {
@@ -47,8 +52,17 @@ class HsdNetImpl : public torch::nn::Module {
  public:
   // upsampling_weights [L, C] (spectral_upsampling_weights of the camera's Ω).
   HsdNetImpl(const NetOptions& options, const torch::Tensor& upsampling_weights);
-  // image [B, 3, H, W] (linear sensor RGB) -> cube and depth.
-  NetOutput forward(const torch::Tensor& image);
+  // image [B, 3, H, W] (linear sensor RGB) -> cube and depth. With the
+  // pre-inversion on, `preinverse` [B, 3K, H, W] is its input beside the image;
+  // undefined: computed from the image (preinverse(image)).
+  NetOutput forward(const torch::Tensor& image, const torch::Tensor& preinverse = {});
+  // The RGB PSFs [K, 3, P, P] of the pre-inversion's layers (camera_rgb_psfs);
+  // set by the owner before forward whenever the optics change (they may carry
+  // a gradient to the DOE). Not a parameter or buffer: the optics own them.
+  void set_preinverse_psf(const torch::Tensor& rgb_psf);
+  const torch::Tensor& preinverse_psf() const { return preinverse_psf_; }
+  // image [B, 3, H, W] -> its Wiener deconvolutions [B, 3K, H, W].
+  torch::Tensor preinverse(const torch::Tensor& image) const;
   const NetOptions& options() const { return opt_; }
   // The residual's spectral-upsampling weights [L, C] (a buffer).
   const torch::Tensor& upsampling_weights() const { return weights_; }
@@ -72,6 +86,7 @@ class HsdNetImpl : public torch::nn::Module {
   std::vector<torch::nn::Sequential> dec_hs_, dec_depth_;
   torch::nn::Conv2d head_hs_{nullptr}, head_depth_{nullptr};
   torch::Tensor weights_;  // buffer [L, C]
+  torch::Tensor preinverse_psf_;  // [K, C, P, P] or undefined
 };
 TORCH_MODULE(HsdNet);
 

@@ -115,3 +115,27 @@ TEST_CASE("export: bfloat16 inference keeps float32 outputs close to float32", "
   CHECK((d16 - ref.depth_m).abs().max().item<double>() < 0.05);
   CHECK_THROWS_AS(model::set_reconstructor_precision(m16, torch::kHalf), InputError);
 }
+
+TEST_CASE("export: a network with the Wiener pre-inversion exports with its PSFs", "[export][preinverse]") {
+  torch::manual_seed(9);
+  model::NetOptions o;
+  o.bands = 4, o.base_width = 8, o.levels = 2, o.norm = "group", o.preinverse_layers = 3, o.preinverse_reg = 0.02;
+  model::HsdNet net(o, torch::rand({4, 3}));
+  net->eval();
+  CHECK_THROWS_AS(model::export_torchscript(net, {{400e-9, 450e-9, 500e-9, 550e-9}, {}, {}}), InputError);  // no PSFs yet
+  torch::Tensor psf = torch::rand({3, 3, 9, 9});
+  net->set_preinverse_psf(psf / psf.sum({2, 3}, true));
+  torch::NoGradGuard ng;
+  const torch::Tensor x = torch::rand({2, 3, 27, 22});  // 27 + 8 = 35 -> an FFT size of 36: the padding rule is exercised
+  const model::NetOutput ref = net->forward(x);
+  torch::jit::Module m = model::export_torchscript(net, {{400e-9, 450e-9, 500e-9, 550e-9}, {}, {}});
+  const fs::path dir = fs::temp_directory_path() / "hsd_test_export_preinverse";
+  fs::create_directories(dir);
+  m.save((dir / "reconstructor.pt").string());
+  torch::jit::Module loaded = model::load_reconstructor((dir / "reconstructor.pt").string());
+  const auto [hs, d] = model::run_reconstructor(loaded, x);
+  CHECK((hs - ref.hs).abs().max().item<double>() <= 1e-5 * ref.hs.abs().max().item<double>());
+  CHECK((d - ref.depth_m).abs().max().item<double>() <= 1e-5 * ref.depth_m.abs().max().item<double>());
+  model::set_reconstructor_precision(loaded, torch::kBFloat16);
+  CHECK(loaded.attr("preinverse_psf").toTensor().scalar_type() == torch::kFloat32);  // the deconvolution stays float32
+}

@@ -46,6 +46,7 @@ std::vector<std::array<int64_t, 4>> read_boxes(const std::string& path, std::vec
 
 EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& split, const std::string& out_dir) {
   trainer.net()->eval();
+  trainer.refresh_preinverse();
   auto net = [&](const torch::Tensor& x) {
     const model::NetOutput o = trainer.net()->forward(x);
     return std::make_pair(o.hs, o.depth_m);

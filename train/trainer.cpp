@@ -20,6 +20,7 @@
 #include "data/preview.h"
 #include "data/synthetic_dataset.h"
 #include "model/spectral_upsampling.h"
+#include "model/wiener_preinverse.h"
 #include "optics/all_in_focus.h"
 #include "optics/psf_atlas.h"
 #include "train/baselines.h"
@@ -61,6 +62,8 @@ model::NetOptions net_options(const Config& cfg) {
   const double span = 1.0 / near - 1.0 / far, m = cfg.model.depth_margin * span;
   o.depth_min_m = 1.0 / (1.0 / near + m);
   o.depth_max_m = 1.0 / std::max(1.0 / far - m, 0.5 / far);
+  o.preinverse_layers = cfg.model.preinverse == "wiener" ? int64_t(d.size()) : 0;
+  o.preinverse_reg = cfg.model.preinverse_reg;
   return o;
 }
 
@@ -128,6 +131,7 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
   // the whole scene's image at those pixels (tests: sensor, margin).
   margin_ = render_margin_px(cfg);
   net_->to(device_);
+  refresh_preinverse();
   weights_ = {cfg.train.loss_alpha, cfg.train.loss_beta, cfg.train.loss_gamma};
   std::vector<torch::optim::OptimizerParamGroup> groups;
   groups.emplace_back(net_->parameters(), std::make_unique<torch::optim::AdamOptions>(cfg.train.lr_net));
@@ -247,6 +251,30 @@ torch::Tensor Trainer::centre(const torch::Tensor& t) const {
 
 torch::Tensor Trainer::psf_stack() const { return optics::imaging_psf_stack(*psf_, doe_.height(), fixed_psf_); }
 
+std::vector<int64_t> Trainer::all_layers() const {
+  std::vector<int64_t> v(psf_->spec().depths_m.size());
+  for (size_t i = 0; i < v.size(); ++i) v[i] = int64_t(i);
+  return v;
+}
+
+std::vector<int64_t> Trainer::all_bands() const {
+  std::vector<int64_t> v(psf_->spec().wavelengths_m.size());
+  for (size_t i = 0; i < v.size(); ++i) v[i] = int64_t(i);
+  return v;
+}
+
+model::NetOutput Trainer::reconstruct_window(const torch::Tensor& window) {
+  const torch::Tensor J = centre(window);
+  if (net_->options().preinverse_layers == 0) return net_->forward(J);
+  return net_->forward(J, centre(net_->preinverse(window)));
+}
+
+void Trainer::refresh_preinverse() {
+  if (net_->options().preinverse_layers == 0) return;
+  torch::NoGradGuard no_grad;
+  net_->set_preinverse_psf(model::camera_rgb_psfs(psf_stack(), sensor_.omega));
+}
+
 Batch Trainer::train_batch(int64_t step) const {
   if (!sampler_) throw InputError("trainer: attach_data() first");
   // The global batch's specs (cheap), then only this rank's patches.
@@ -297,13 +325,28 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
     };
   const auto gens = image_generators(mix(cfg_.seed ^ 0xA5A5A5A5ull, uint64_t(step)), batch.first_index, batch.radiance.size(0));
   const torch::Tensor h = doe_.height();
+  // The pre-inversion needs every layer's PSFs: computed once (through the
+  // provider, so profiling and data-parallel sharing see one call) and handed
+  // to the sensor model as slices of the same stack.
+  const bool pre = net_->options().preinverse_layers > 0;
+  torch::Tensor rgb_psf;
+  if (pre) {
+    const torch::Tensor all = provider ? provider(h, all_layers(), all_bands()) : psf_->compute(h).psf;
+    rgb_psf = model::camera_rgb_psfs(all, sensor_.omega);
+    provider = optics::fixed_psf_provider(all);
+  }
   const optics::SensorImage img =
       optics::simulate_sensor(*psf_, sensor_, h, batch.radiance, batch.depth_m, gens, optics::LeaveOut(), provider);
   lap(&StepProfile::sensor_forward);
   if (prof) prof->sensor_forward -= psf_seconds, prof->psf_forward += psf_seconds;
-  const torch::Tensor image = centre(img.image);
-  const torch::Tensor net_in = prof && image.requires_grad() ? image.detach().requires_grad_() : image;
-  const model::NetOutput out = net_->forward(net_in);
+  // Profiling cuts the graph at the rendered window (the network's side of the sensor model).
+  const torch::Tensor window = prof && img.image.requires_grad() ? img.image.detach().requires_grad_() : img.image;
+  torch::Tensor pre_in;  // the whole rendered window's deconvolutions, then its centre (no wrap-around at the patch)
+  if (pre) {
+    net_->set_preinverse_psf(rgb_psf);
+    pre_in = centre(net_->preinverse(window));
+  }
+  const model::NetOutput out = net_->forward(centre(window), pre_in);
   lap(&StepProfile::network_forward);
   const LossTerms L =
       reconstruction_loss(out.hs, centre(batch.radiance), out.inv_depth, 1.0 / centre(batch.depth_m), weights_);
@@ -321,8 +364,8 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   opt_->zero_grad();
   L.total.backward();
   lap(&StepProfile::network_backward);
-  if (prof && net_in.requires_grad() && net_in.grad().defined()) {
-    image.backward(net_in.grad());
+  if (prof && window.requires_grad() && window.grad().defined()) {
+    img.image.backward(window.grad());
     lap(&StepProfile::sensor_backward);
     if (psf_out.defined() && psf_cut.requires_grad() && psf_cut.grad().defined()) psf_out.backward(psf_cut.grad());
     lap(&StepProfile::psf_backward);
@@ -336,6 +379,7 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   // its own scale (its gradient is in loss per metre, ~1e6 times larger).
   if (T.clip_grad_norm > 0) torch::nn::utils::clip_grad_norm_(net_->parameters(), T.clip_grad_norm);
   opt_->step();
+  if (pre) net_->set_preinverse_psf(rgb_psf.detach());  // its graph is spent; refresh_preinverse() for the new DOE
   lap(&StepProfile::optimizer);
   if (prof) ++prof->steps;
   st.loss = terms[0];
@@ -351,6 +395,7 @@ ValStats Trainer::validate() {
   // Per-rank batch norm: every rank validates with rank 0's running statistics.
   if (group_ && !cfg_.distributed.sync_batch_norm) group_->broadcast_(net_->buffers(), "rank 0's batch-norm statistics");
   net_->eval();
+  refresh_preinverse();
   const torch::Tensor h = doe_.height();
   // This rank's share [lo, hi) of the validation patches (all of them alone).
   const int64_t n_all = val_.radiance.size(0), B = cfg_.train.batch_size;
@@ -365,7 +410,7 @@ ValStats Trainer::validate() {
         optics::simulate_sensor(*psf_, sensor_, h, Iw, Zw, image_generators(mix(cfg_.seed, kValSeed + 1), i, b),
                                 optics::LeaveOut(), fixed_psf_);
     const torch::Tensor I = centre(Iw), Z = centre(Zw), J = centre(img.image);
-    const model::NetOutput out = net_->forward(J);
+    const model::NetOutput out = reconstruct_window(img.image);
     se_up += (model::spectral_upsample(net_->upsampling_weights(), J) - I).pow(2).sum().item<double>();
     const torch::Tensor Zc = constant_depth_map(Z, c_inv);
     abs_c += (Zc - Z).abs().sum().item<double>();
@@ -487,19 +532,21 @@ int64_t Trainer::load_checkpoint(const std::string& path) {
                                " differs between the ranks' hosts)");
     group_->broadcast_(replicated_state(), "the resumed network, DOE and Adam state");
   }
+  refresh_preinverse();  // the loaded DOE's PSFs
   return next;
 }
 
 void Trainer::write_val_pictures(const std::string& dir, int64_t step) {
   torch::NoGradGuard no_grad;
   net_->eval();
+  refresh_preinverse();
   const int64_t n = std::min<int64_t>(2, val_.radiance.size(0));
   const optics::SensorImage img = optics::simulate_sensor(
       *psf_, sensor_, doe_.height(), val_.radiance.narrow(0, 0, n), val_.depth_m.narrow(0, 0, n),
       image_generators(mix(cfg_.seed, kValSeed + 1), 0, n), optics::LeaveOut(), fixed_psf_);
   const torch::Tensor I = centre(val_.radiance.narrow(0, 0, n)), Z = centre(val_.depth_m.narrow(0, 0, n));
   const torch::Tensor J = centre(img.image);
-  const model::NetOutput out = net_->forward(J);
+  const model::NetOutput out = reconstruct_window(img.image);
   net_->train();
   const auto bands = cfg_.optics.wavelengths_m();
   const double bw = cfg_.optics.band_width_m();

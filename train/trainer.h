@@ -119,6 +119,10 @@ class Trainer {
   const optics::PsfProvider& fixed_psf() const { return fixed_psf_; }
   // Every band's and depth's imaging PSF [L, Z, P, P] (the DOE's or the fixed stack).
   torch::Tensor psf_stack() const;
+  // model.preinverse = "wiener": hands the network the RGB PSFs of the current
+  // DOE (no gradient); called by validation, pictures, evaluation and after a
+  // checkpoint is loaded. Training steps set their own (with the gradient).
+  void refresh_preinverse();
   // The constant-depth baseline's inverse depth [1/m]: the training split's
   // median (attach_data, or a checkpoint that stores it); NaN when unknown.
   double baseline_inv_depth() const { return baseline_inv_depth_; }
@@ -136,6 +140,11 @@ class Trainer {
   // hsd padded); the last kept row's wall time into *wall_offset.
   static std::vector<std::vector<std::string>> resume_rows(const std::string& csv, int64_t start, double* wall_offset);
   void write_val_pictures(const std::string& dir, int64_t step);
+  // The network on the centre patch of a rendered window [B, 3, S', S'] (the
+  // pre-inversion, when on, of the whole window, then its centre).
+  model::NetOutput reconstruct_window(const torch::Tensor& window);
+  std::vector<int64_t> all_layers() const;  // 0 .. Z−1
+  std::vector<int64_t> all_bands() const;   // 0 .. L−1
   // The centre patch_size_px × patch_size_px of [B, C, S', S'] (itself when S' = S).
   torch::Tensor centre(const torch::Tensor& t) const;
   std::vector<torch::Tensor> trained_parameters() const;  // what Adam updates

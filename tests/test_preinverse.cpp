@@ -1,0 +1,190 @@
+// The Wiener pre-inversion (model/wiener_preinverse.h): closed forms (a delta
+// PSF, the camera's RGB PSF of a known response), recovery of a blurred scene
+// with the right layer's PSF and not with a wrong one, a float64 gradient check
+// in the image and the PSFs, and the network's input with it switched on.
+#include <catch2/catch.hpp>
+
+#include <torch/torch.h>
+
+#include <filesystem>
+
+#include "common/error.h"
+#include "helpers.h"
+#include "model/unet.h"
+#include "model/wiener_preinverse.h"
+#include "train/trainer.h"
+
+using namespace hsd;
+namespace F = torch::nn::functional;
+
+namespace {
+
+// Normalised Gaussian PSFs [K, C, P, P] of widths sigma_px (one per layer).
+torch::Tensor gaussian_psfs(const std::vector<double>& sigma_px, int64_t C, int64_t P, c10::ScalarType dtype) {
+  const torch::Tensor t = torch::arange(P, dtype) - double(P / 2);
+  std::vector<torch::Tensor> layers;
+  for (double s : sigma_px) {
+    torch::Tensor g = torch::exp(-(t.view({-1, 1}).square() + t.view({1, -1}).square()) / (2 * s * s));
+    layers.push_back((g / g.sum()).expand({C, P, P}));
+  }
+  return torch::stack(layers);
+}
+
+// The sensor model's convolution: the scene extended by edge replication, then a linear convolution.
+torch::Tensor blur(const torch::Tensor& x, const torch::Tensor& psf_cpp) {
+  const int64_t C = x.size(1), r = psf_cpp.size(-1) / 2;
+  const torch::Tensor xp = F::pad(x, F::PadFuncOptions({r, r, r, r}).mode(torch::kReplicate));
+  // conv2d correlates: flip the kernel to convolve.
+  return F::conv2d(xp, psf_cpp.flip({-2, -1}).unsqueeze(1), F::Conv2dFuncOptions().groups(C));
+}
+
+Config tiny_wiener() {
+  return load_config(test::source_path("configs/tiny.json"),
+                     {"data.root=\"unused_no_data_is_loaded\"", "model.base_width=4", "model.levels=2",
+                      "train.batch_size=2", "train.warmup_steps=0", "train.decay=none", "data.patch_size_px=16",
+                      "train.lr_net=0.003", "model.preinverse=\"wiener\""});
+}
+
+train::Batch tiny_batch(int64_t L) {
+  torch::manual_seed(5);
+  train::Batch b;
+  b.radiance = torch::rand({2, L, 16, 16});
+  b.depth_m = 0.5 + torch::rand({2, 1, 16, 16});
+  return b;
+}
+
+double rel(const torch::Tensor& a, const torch::Tensor& b) {
+  return ((a - b).norm() / b.norm().clamp_min(1e-30)).item<double>();
+}
+
+}  // namespace
+
+TEST_CASE("preinverse: a delta PSF returns the image over 1 + rho in every layer", "[preinverse]") {
+  torch::manual_seed(1);
+  const torch::Tensor x = torch::rand({2, 3, 13, 17}, torch::kFloat64);
+  torch::Tensor delta = torch::zeros({2, 3, 5, 5}, torch::kFloat64);
+  delta.select(2, 2).select(2, 2).fill_(1.0);
+  const double rho = 0.25;
+  const torch::Tensor y = model::wiener_preinverse(x, delta, rho);
+  REQUIRE(y.sizes() == c10::IntArrayRef{2, 6, 13, 17});
+  CHECK((y.narrow(1, 0, 3) - x / (1 + rho)).abs().max().item<double>() < 1e-12);
+  CHECK((y.narrow(1, 3, 3) - x / (1 + rho)).abs().max().item<double>() < 1e-12);
+}
+
+TEST_CASE("preinverse: the camera's RGB PSF is the response-weighted band mean", "[preinverse]") {
+  // 2 bands, 1 layer, P = 3: band 0 a delta, band 1 uniform; channel 0 sees
+  // band 0 only, channel 1 both equally (weights 2 and 2), channel 2 nothing.
+  torch::Tensor psf = torch::zeros({2, 1, 3, 3}, torch::kFloat64);
+  psf[0][0][1][1] = 1.0;
+  psf[1][0].fill_(1.0 / 9);
+  const torch::Tensor omega = torch::tensor({1.0, 0.0, 2.0, 2.0, 0.0, 0.0}, torch::kFloat64).view({3, 2});
+  const torch::Tensor rgb = model::camera_rgb_psfs(psf, omega);
+  REQUIRE(rgb.sizes() == c10::IntArrayRef{1, 3, 3, 3});
+  CHECK((rgb[0][0] - psf[0][0]).abs().max().item<double>() < 1e-15);
+  CHECK((rgb[0][1] - 0.5 * (psf[0][0] + psf[1][0])).abs().max().item<double>() < 1e-15);
+  CHECK(rgb[0][2].abs().max().item<double>() == 0.0);  // no response: zeros, not NaN
+  CHECK(rgb[0][1].sum().item<double>() == Approx(1.0).epsilon(1e-14));
+}
+
+TEST_CASE("preinverse: the right layer's PSF recovers a blurred scene, a wrong one does not", "[preinverse]") {
+  torch::manual_seed(2);
+  // A smooth random scene (12 x 12 noise upsampled bicubically to 48 x 48), 3 channels.
+  const torch::Tensor scene = F::interpolate(torch::rand({1, 3, 12, 12}, torch::kFloat64),
+                                             F::InterpolateFuncOptions()
+                                                 .size(std::vector<int64_t>{48, 48})
+                                                 .mode(torch::kBicubic)
+                                                 .align_corners(false));
+  const torch::Tensor psfs = gaussian_psfs({0.7, 2.0}, 3, 15, torch::kFloat64);  // layer 0 sharp, layer 1 wide
+  const torch::Tensor image = blur(scene, psfs[1]);                               // the scene at layer 1
+  const torch::Tensor y = model::wiener_preinverse(image, psfs, 1e-4);
+  // Away from the borders, where the replicated extension of the image is not
+  // the blurred replicated scene.
+  auto rms = [](const torch::Tensor& a, const torch::Tensor& b) {
+    return (a - b).narrow(2, 12, 24).narrow(3, 12, 24).square().mean().sqrt().item<double>();
+  };
+  const double blurred = rms(image, scene), right = rms(y.narrow(1, 3, 3), scene), wrong = rms(y.narrow(1, 0, 3), scene);
+  INFO("rms error: blurred image " << blurred << ", right layer " << right << ", wrong layer " << wrong);
+  CHECK(right < 0.2 * blurred);
+  CHECK(wrong > 0.5 * blurred);
+  CHECK(wrong > 4 * right);
+}
+
+TEST_CASE("preinverse: gradients in the image and the PSFs match central differences (float64)", "[preinverse]") {
+  torch::manual_seed(3);
+  const torch::Tensor x = torch::rand({1, 2, 9, 11}, torch::kFloat64).requires_grad_();
+  const torch::Tensor p = (torch::rand({2, 2, 5, 5}, torch::kFloat64) + 0.1).requires_grad_();
+  const torch::Tensor w = torch::randn({1, 4, 9, 11}, torch::kFloat64);  // a fixed random functional
+  auto f = [&](const torch::Tensor& xx, const torch::Tensor& pp) {
+    return (model::wiener_preinverse(xx, pp, 0.05) * w).sum();
+  };
+  f(x, p).backward();
+  torch::NoGradGuard ng;
+  const double h = 1e-6;
+  for (const auto& [t, g, name] : {std::tuple<torch::Tensor, torch::Tensor, const char*>{x, x.grad(), "image"},
+                                   {p, p.grad(), "psf"}}) {
+    for (int64_t i : {int64_t(0), t.numel() / 3, t.numel() - 1}) {
+      torch::Tensor tp = t.detach().clone(), tm = t.detach().clone();
+      tp.view(-1)[i] += h;
+      tm.view(-1)[i] -= h;
+      const bool img = std::string(name) == "image";
+      const double fd = ((img ? f(tp, p) : f(x, tp)) - (img ? f(tm, p) : f(x, tm))).item<double>() / (2 * h);
+      INFO(name << " entry " << i);
+      CHECK(g.view(-1)[i].item<double>() == Approx(fd).epsilon(1e-6).margin(1e-9));
+    }
+  }
+}
+
+TEST_CASE("preinverse: the network takes the deconvolutions beside the image", "[preinverse]") {
+  torch::manual_seed(4);
+  model::NetOptions o;
+  o.bands = 5, o.base_width = 8, o.levels = 2, o.norm = "group", o.preinverse_layers = 2, o.preinverse_reg = 0.01;
+  model::HsdNet net(o, torch::rand({5, 3}));
+  net->eval();
+  const torch::Tensor x = torch::rand({1, 3, 20, 20});
+  CHECK_THROWS_WITH(net->forward(x), Catch::Contains("set_preinverse_psf"));
+  CHECK_THROWS(net->set_preinverse_psf(torch::rand({3, 3, 5, 5})));  // 3 layers for a 2-layer network
+  net->set_preinverse_psf(gaussian_psfs({1.0, 2.0}, 3, 7, torch::kFloat32));
+  torch::NoGradGuard ng;
+  const model::NetOutput a = net->forward(x), b = net->forward(x, net->preinverse(x));
+  CHECK(torch::equal(a.hs, b.hs));
+  CHECK(torch::equal(a.depth_m, b.depth_m));
+  // The input matters: a different pre-inversion changes the output.
+  const model::NetOutput c = net->forward(x, torch::zeros({1, 6, 20, 20}));
+  CHECK((c.hs - a.hs).abs().max().item<double>() > 0);
+}
+
+TEST_CASE("preinverse: training with it lowers the loss, reaches the DOE, profiles exactly and resumes", "[train][preinverse]") {
+  const Config cfg = tiny_wiener();
+  train::Trainer a(cfg), b(cfg);
+  const int64_t L = int64_t(a.psf().spec().wavelengths_m.size()), Z = int64_t(a.psf().spec().depths_m.size());
+  REQUIRE(a.net()->options().preinverse_layers == Z);
+  const auto bt = tiny_batch(L);
+  train::StepProfile prof;
+  b.set_profile(&prof);
+  const double first = a.step(bt, 0).loss;
+  b.step(bt, 0);
+  REQUIRE(a.doe().parameter().grad().defined());
+  CHECK(a.doe().parameter().grad().abs().max().item<double>() > 0.0);
+  double last = first;
+  for (int k = 1; k < 8; ++k) last = a.step(bt, k).loss, b.step(bt, k);
+  CHECK(last < first);
+  CHECK(rel(b.height(), a.height()) < 1e-6);  // the profiled step's three-part backward is the same chain rule
+  const auto pa = a.net()->named_parameters(), pb = b.net()->named_parameters();
+  for (const auto& p : pa) {
+    INFO(p.key());
+    CHECK(rel(pb[p.key()], p.value()) < 1e-6);
+  }
+  // After a step the network holds detached PSFs: it runs forward and backward alone.
+  CHECK_FALSE(a.net()->preinverse_psf().requires_grad());
+  const auto o = a.net()->forward(torch::rand({1, 3, 16, 16}));
+  CHECK_NOTHROW((o.hs.mean() + o.depth_m.mean()).backward());
+  // A checkpoint restores the network's PSFs from the loaded DOE.
+  const std::string ck = (std::filesystem::temp_directory_path() / "hsd_test_preinverse_ck.pt").string();
+  a.save_checkpoint(ck, 8);
+  train::Trainer c(cfg);
+  c.load_checkpoint(ck);
+  a.refresh_preinverse();
+  const torch::Tensor expect = model::camera_rgb_psfs(a.psf_stack(), a.sensor().omega);
+  CHECK(rel(c.net()->preinverse_psf(), expect) < 1e-6);
+  CHECK(rel(a.net()->preinverse_psf(), expect) < 1e-6);
+}
