@@ -511,6 +511,40 @@ TEST_CASE("hsd_fisher writes the CRLB table and a design that training and hsd_p
   CHECK_FALSE(fs::exists(out / "bad"));
 }
 
+TEST_CASE("hsd_train, hsd_eval and hsd_export with the Wiener pre-inversion: the exported model scores the checkpoint's metrics", "[app][eval][preinverse]") {
+  const fs::path base = fs::temp_directory_path() / "hsd_test_eval_wiener";
+  fs::remove_all(base);
+  const std::string sets =
+      " --set data.root=" + (base / "data").string() +
+      " --set model.base_width=4 --set model.levels=2 --set train.batch_size=2 --set train.steps=4"
+      " --set train.val_patches=2 --set data.patch_size_px=16 --set data.generator.train_scenes=2"
+      " --set data.generator.val_scenes=1 --set data.generator.test_scenes=1 --set data.generator.width_px=48"
+      " --set data.generator.height_px=40 --set model.preinverse=wiener --set model.preinverse_reg=0.02";
+  const Run t = run("hsd_train --config configs/tiny.json" + sets + " --out " + (base / "run").string());
+  INFO(t.err);
+  REQUIRE(t.code == 0);
+  const std::string ck = " --checkpoint " + (base / "run/checkpoints/last.pt").string();
+  const Run r = run("hsd_eval --config configs/tiny.json" + sets + ck + " --out " + (base / "eval").string());
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  const Run ex = run("hsd_export --config configs/tiny.json" + sets + ck + " --out " + (base / "export").string());
+  INFO(ex.err);
+  REQUIRE(ex.code == 0);
+  const std::string model = (base / "export/reconstructor.pt").string();
+  const Run em = run("hsd_eval --config configs/tiny.json" + sets + " --model " + model + " --out " + (base / "eval_model").string());
+  INFO(em.err);
+  REQUIRE(em.code == 0);
+  const auto j = nlohmann::json::parse(std::ifstream(base / "eval" / "metrics.json"));
+  const auto jm = nlohmann::json::parse(std::ifstream(base / "eval_model" / "metrics.json"));
+  for (const char* k : {"hs_psnr_db", "hs_ssim", "depth_rmse_m", "baseline_upsampling_hs_psnr_db"})
+    CHECK(jm[k].get<double>() == Approx(j[k].get<double>()).epsilon(1e-4));
+  // Python's torch.jit.load runs it (the FFTs included).
+  const std::string py = "/usr/bin/python3 -c \"import torch; m = torch.jit.load('" + model +
+                         "'); hs, z = m(torch.rand(1, 3, 20, 18)); assert tuple(z.shape) == (1, 1, 20, 18); "
+                         "assert tuple(m.preinverse_psf.shape[1:3]) == (3, 15), m.preinverse_psf.shape; print('ok')\" 2>&1";
+  CHECK(capture(py).first.find("ok") != std::string::npos);
+}
+
 TEST_CASE("hsd_eval and hsd_export on a trained checkpoint: metrics, report, pictures, TorchScript", "[app][eval]") {
   const fs::path base = fs::temp_directory_path() / "hsd_test_eval";
   fs::remove_all(base);
