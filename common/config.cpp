@@ -367,6 +367,9 @@ Config parse_config(const Json& resolved) {
     T.loss_alpha = t->get_number("loss_alpha", T.loss_alpha);
     T.loss_beta = t->get_number("loss_beta", T.loss_beta);
     T.loss_gamma = t->get_number("loss_gamma", T.loss_gamma);
+    T.depth_loss = t->get_string("depth_loss", T.depth_loss);
+    if (T.depth_loss != "inverse_l1" && T.depth_loss != "metric_l1")
+      t->fail("depth_loss", "expected \"inverse_l1\" or \"metric_l1\", got \"" + T.depth_loss + "\"");
     for (const auto& [k, v] : {std::pair<const char*, double>{"loss_alpha", T.loss_alpha},
                                {"loss_beta", T.loss_beta}, {"loss_gamma", T.loss_gamma}})
       if (v < 0.0) t->fail(k, "must be >= 0");

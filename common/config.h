@@ -140,6 +140,9 @@ struct TrainConfig {
   double clip_grad_norm = 1.0;      // per parameter group; 0 = off
   bool freeze_doe = false;          // fixed-DOE ablations
   double loss_alpha = 1.0, loss_beta = 1e-2, loss_gamma = 1e-2;  // L1 cube, L1 inverse depth, TV of predicted inverse depth
+  // The depth term's unit: "inverse_l1" (|1/Ẑ − 1/Z|, the paper) or
+  // "metric_l1" (|Ẑ − Z| in metres, the unit the evaluation reports).
+  std::string depth_loss = "inverse_l1";
   int64_t val_every = 100;          // steps between validations (and the last step)
   int64_t val_patches = 8;          // fixed validation patches from the val split
   int64_t checkpoint_every = 100;   // steps between checkpoints (and the last step)

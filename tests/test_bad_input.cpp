@@ -173,6 +173,7 @@ TEST_CASE("bad input: every app refuses stray, repeated and malformed arguments 
         {F.cfg + " --set \"data.root=$(printf 'x\\377y')\" --out " + out, 2, "data.root", ""},
         {F.cfg + " --set model.levels=5 --out " + out, 2, "model.levels", ""},
         {F.cfg + " --set model.preinverse=fft --out " + out, 2, "model.preinverse", ""},
+        {F.cfg + " --set train.depth_loss=l2 --out " + out, 2, "train.depth_loss", ""},
         {F.cfg + " --set train.steps=0 --out " + out, 2, "train.steps", ""},
         {F.cfg + " --set \"_note=$(printf '[%.0s' $(seq 100))$(printf ']%.0s' $(seq 100))\" --out " + out, 2, "_note", ""},
     });

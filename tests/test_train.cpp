@@ -73,6 +73,10 @@ TEST_CASE("train: the loss terms and the schedule", "[train]") {
   CHECK(t.depth.item<double>() == Approx(1.0));                    // half the pixels off by 2
   CHECK(t.tv.item<double>() == Approx(2.0 * 4 / 12));              // 4 of 12 horizontal pairs jump by 2
   CHECK(t.total.item<double>() == Approx(0.5 + 0.1 + 0.01 * 2.0 / 3.0));
+  // In metres: inverse depth 3 (1/m) is 1/3 m against 1 m, so half the pixels are off by 2/3 m.
+  const auto m = train::reconstruction_loss(I + 0.5, I, Dp, D, {1.0, 0.1, 0.01, true});
+  CHECK(m.depth.item<double>() == Approx(1.0 / 3.0));
+  CHECK(m.tv.item<double>() == Approx(t.tv.item<double>()));  // the TV term stays on inverse depth
   CHECK(train::lr_factor(0, 100, 10, "cosine", 0.1) == Approx(0.1));
   CHECK(train::lr_factor(9, 100, 10, "cosine", 0.1) == Approx(1.0));
   CHECK(train::lr_factor(99, 100, 10, "cosine", 0.1) == Approx(0.1));

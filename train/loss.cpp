@@ -17,7 +17,9 @@ LossTerms reconstruction_loss(const torch::Tensor& hs_pred, const torch::Tensor&
                               const torch::Tensor& inv_true, const LossWeights& w, const torch::Tensor& mask) {
   LossTerms t;
   t.hs = masked_mean((hs_pred - hs_true).abs(), mask);
-  t.depth = masked_mean((inv_pred - inv_true).abs(), mask);
+  t.depth = w.depth_in_metres
+                ? masked_mean((1.0 / inv_pred.clamp_min(1e-6) - 1.0 / inv_true.clamp_min(1e-6)).abs(), mask)
+                : masked_mean((inv_pred - inv_true).abs(), mask);
   // Forward differences along x and y (anisotropic TV), over pairs of valid pixels.
   const int64_t H = inv_pred.size(2), W = inv_pred.size(3);
   torch::Tensor tv = torch::zeros({}, inv_pred.options());

@@ -1,5 +1,9 @@
 // The training loss (Baek et al. 2021, "Loss"):
 //   L = α·mean|Î − I| + β·mean|D̂ − D| + γ·mean|∇D̂|,   D = 1/Z (inverse depth, 1/m)
+// or, with the depth term in metres (train.depth_loss = "metric_l1"),
+//   β·mean|1/D̂ − 1/D| = β·mean|Ẑ − Z|
+// (the evaluation's unit; both are minimised by the same constant, the median,
+// so the constant-depth baseline is the optimum of either).
 // The total-variation term acts on the prediction (the paper writes ∇D; the
 // gradient of the ground truth is a constant). Means run over valid pixels
 // (mask) when a mask is given.
@@ -10,6 +14,7 @@ namespace hsd::train {
 
 struct LossWeights {
   double alpha = 1.0, beta = 1e-2, gamma = 1e-2;
+  bool depth_in_metres = false;  // the depth term on Z (m) instead of 1/Z (1/m)
 };
 
 struct LossTerms {

@@ -132,7 +132,7 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
   margin_ = render_margin_px(cfg);
   net_->to(device_);
   refresh_preinverse();
-  weights_ = {cfg.train.loss_alpha, cfg.train.loss_beta, cfg.train.loss_gamma};
+  weights_ = {cfg.train.loss_alpha, cfg.train.loss_beta, cfg.train.loss_gamma, cfg.train.depth_loss == "metric_l1"};
   std::vector<torch::optim::OptimizerParamGroup> groups;
   groups.emplace_back(net_->parameters(), std::make_unique<torch::optim::AdamOptions>(cfg.train.lr_net));
   if (!doe_trained_) {
