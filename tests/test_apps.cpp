@@ -511,15 +511,21 @@ TEST_CASE("hsd_fisher writes the CRLB table and a design that training and hsd_p
   CHECK_FALSE(fs::exists(out / "bad"));
 }
 
+namespace {
+// A tiny training run for the evaluation and export tests: 4 steps, one test scene and the ColorChecker.
+std::string eval_test_sets(const fs::path& base) {
+  return " --set data.root=" + (base / "data").string() +
+         " --set model.base_width=4 --set model.levels=2 --set train.batch_size=2 --set train.steps=4"
+         " --set train.val_patches=2 --set data.patch_size_px=16 --set data.generator.train_scenes=2"
+         " --set data.generator.val_scenes=1 --set data.generator.test_scenes=1 --set data.generator.width_px=48"
+         " --set data.generator.height_px=40";
+}
+}  // namespace
+
 TEST_CASE("hsd_train, hsd_eval and hsd_export with the Wiener pre-inversion: the exported model scores the checkpoint's metrics", "[app][eval][preinverse]") {
   const fs::path base = fs::temp_directory_path() / "hsd_test_eval_wiener";
   fs::remove_all(base);
-  const std::string sets =
-      " --set data.root=" + (base / "data").string() +
-      " --set model.base_width=4 --set model.levels=2 --set train.batch_size=2 --set train.steps=4"
-      " --set train.val_patches=2 --set data.patch_size_px=16 --set data.generator.train_scenes=2"
-      " --set data.generator.val_scenes=1 --set data.generator.test_scenes=1 --set data.generator.width_px=48"
-      " --set data.generator.height_px=40 --set model.preinverse=wiener --set model.preinverse_reg=0.02";
+  const std::string sets = eval_test_sets(base) + " --set model.preinverse=wiener --set model.preinverse_reg=0.02";
   const Run t = run("hsd_train --config configs/tiny.json" + sets + " --out " + (base / "run").string());
   INFO(t.err);
   REQUIRE(t.code == 0);
@@ -548,12 +554,7 @@ TEST_CASE("hsd_train, hsd_eval and hsd_export with the Wiener pre-inversion: the
 TEST_CASE("hsd_eval and hsd_export on a trained checkpoint: metrics, report, pictures, TorchScript", "[app][eval]") {
   const fs::path base = fs::temp_directory_path() / "hsd_test_eval";
   fs::remove_all(base);
-  const std::string sets =
-      " --set data.root=" + (base / "data").string() +
-      " --set model.base_width=4 --set model.levels=2 --set train.batch_size=2 --set train.steps=4"
-      " --set train.val_patches=2 --set data.patch_size_px=16 --set data.generator.train_scenes=2"
-      " --set data.generator.val_scenes=1 --set data.generator.test_scenes=1 --set data.generator.width_px=48"
-      " --set data.generator.height_px=40";
+  const std::string sets = eval_test_sets(base);
   REQUIRE(run("hsd_train --config configs/tiny.json" + sets + " --out " + (base / "run").string()).code == 0);
   const Run r = run("hsd_eval --config configs/tiny.json" + sets + " --checkpoint " + (base / "run/checkpoints/last.pt").string() +
                     " --out " + (base / "eval").string());
