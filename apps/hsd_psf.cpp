@@ -1,6 +1,7 @@
 // hsd_psf: a DOE (optics.doe.init) -> the hyperspectral-depth PSF stack.
 // Writes DIR/psf.pt (CONTRACT.md), DIR/psf_atlas.png, DIR/config.json and
 // prints the energy-in-window table and any sampling warnings.
+#include <cmath>
 #include <cstdio>
 
 #include <torch/torch.h>
@@ -68,21 +69,53 @@ int run(const AppArgs& args) {
   print_energy_table(energy, spec);
   const auto report = optics::check_sampling(spec, energy, cfg.optics.energy_warn_threshold);
   for (const auto& w : report.warnings) log::warn(w);
-  if (spec.depths_m.size() >= 2) {
-    const auto dd = optics::depth_distinctness(out.psf);
-    std::string line = "depth cue per band: smallest total-variation distance between two depths' PSFs (0 = same PSF, 1 = disjoint)";
-    char buf[128];
-    for (size_t l = 0; l < dd.per_band.size(); ++l) {
-      std::snprintf(buf, sizeof buf, "\n  %4.0f nm  %.3f  (%.3g m vs %.3g m)", spec.wavelengths_m[l] * 1e9, dd.per_band[l],
-                    spec.depths_m[size_t(dd.pair[l].first)], spec.depths_m[size_t(dd.pair[l].second)]);
-      line += buf;
-    }
-    log::info(line);
-  }
   log::info("largest phase step of the sampled chirps: " + std::to_string(report.max_phase_step_rad.max().item<double>()) +
             " rad per DOE sample (limit pi)");
 
   const torch::Tensor omega = optics::camera_response(cfg.sensor.camera, spec.wavelengths_m, cfg.optics.band_width_m());
+  if (spec.depths_m.size() >= 2) {
+    // Per band, and per camera channel (the sensor sums the bands with the camera's response, which can wash out a
+    // cue that every band carries, e.g. a PSF that rotates with depth at a different rate per wavelength).
+    const torch::Tensor w = omega.to(out.psf.dtype()).to(out.psf.device());
+    const torch::Tensor rgb =
+        torch::einsum("cl,lkpq->ckpq", {w, out.psf}) / w.sum(1).clamp_min(1e-30).view({-1, 1, 1, 1});
+    const char* channel[] = {"R", "G", "B"};
+    auto cue_lines = [&](const torch::Tensor& psf, const std::string& title, auto label) {
+      const auto dd = optics::depth_distinctness(psf);
+      std::string line = title;
+      char buf[128];
+      for (size_t l = 0; l < dd.per_band.size(); ++l) {
+        std::snprintf(buf, sizeof buf, "\n  %7s  %.3f  (%.3g m vs %.3g m)", label(l).c_str(), dd.per_band[l],
+                      spec.depths_m[size_t(dd.pair[l].first)], spec.depths_m[size_t(dd.pair[l].second)]);
+        line += buf;
+      }
+      log::info(line);
+    };
+    cue_lines(out.psf,
+              "depth cue per band: smallest total-variation distance between two depths' PSFs (0 = same PSF, 1 = "
+              "disjoint)",
+              [&](size_t l) { return std::to_string(int(std::lround(spec.wavelengths_m[l] * 1e9))) + " nm"; });
+    if (rgb.size(0) == 3) {
+      cue_lines(rgb, "depth cue per camera channel (the band PSFs weighted by the camera response)",
+                [&](size_t c) { return std::string(channel[c]); });
+      // Through a scene, not a point (optics/depth_distinctness.h): what the network can see.
+      const auto sc = optics::scene_depth_cue(rgb);
+      std::string line =
+          "depth cue through a 1/f^2 scene per camera channel: fraction of the image's power that changes between two "
+          "depths (smallest pair, mean over pairs)";
+      char buf[160];
+      double mean = 0;
+      for (size_t c = 0; c < sc.min_per_slice.size(); ++c) {
+        std::snprintf(buf, sizeof buf, "\n        %s  %.4f (%.3g m vs %.3g m)  mean %.4f", channel[c], sc.min_per_slice[c],
+                      spec.depths_m[size_t(sc.pair[c].first)], spec.depths_m[size_t(sc.pair[c].second)],
+                      sc.mean_per_slice[c]);
+        line += buf;
+        mean += sc.mean_per_slice[c] / double(sc.min_per_slice.size());
+      }
+      std::snprintf(buf, sizeof buf, "\n  mean over channels and pairs: %.4f", mean);
+      log::info(line + buf);
+    }
+  }
   auto f64 = [](const std::vector<double>& v) { return torch::tensor(v, torch::kFloat64); };
   auto scalar = [](double v) { return torch::tensor(v, torch::kFloat64); };
   save_tensor_dict(args.out_dir + "/psf.pt",
