@@ -28,17 +28,20 @@ DepthDistinctness depth_distinctness(const torch::Tensor& psf) {
   return d;
 }
 
-SceneDepthCue scene_depth_cue(const torch::Tensor& psf, double corner_cycles_per_px) {
+SceneDepthCue scene_depth_cue(const torch::Tensor& psf, double noise_variance, double corner_cycles_per_px) {
   if (psf.dim() != 4 || psf.size(1) < 2 || psf.size(2) != psf.size(3))
     throw InputError("scene depth cue: needs a PSF stack [L, Z >= 2, P, P]");
-  if (!(corner_cycles_per_px > 0)) throw InputError("scene depth cue: the corner frequency must be > 0");
+  if (!(noise_variance > 0) || !(corner_cycles_per_px > 0))
+    throw InputError("scene depth cue: the noise variance and the corner frequency must be > 0");
   const int64_t P = psf.size(2), N = std::max<int64_t>(128, fast_fft_size(2 * P));
   const torch::Tensor p = psf.detach().to(torch::kFloat64).cpu();
   const torch::Tensor H = torch::fft::fft2(torch::constant_pad_nd(p, {0, N - P, 0, N - P}));  // [L, Z, N, N]
+  const torch::Tensor mtf2 = torch::real(H).square() + torch::imag(H).square();
   const torch::Tensor f = torch::fft::fftfreq(N, torch::kFloat64);
-  const torch::Tensor S =
+  torch::Tensor S =
       1.0 / (f.view({-1, 1}).square() + f.view({1, -1}).square() + corner_cycles_per_px * corner_cycles_per_px);
-  auto power = [](const torch::Tensor& z) { return torch::real(z).square() + torch::imag(z).square(); };
+  S = S / S.mean();
+  const torch::Tensor power = S * mtf2 + noise_variance;  // [L, Z, N, N], > 0
   SceneDepthCue cue;
   for (int64_t l = 0; l < p.size(0); ++l) {
     double best = std::numeric_limits<double>::infinity(), sum = 0.0;
@@ -46,11 +49,11 @@ SceneDepthCue scene_depth_cue(const torch::Tensor& psf, double corner_cycles_per
     std::pair<int64_t, int64_t> at{0, 1};
     for (int64_t a = 0; a < p.size(1); ++a)
       for (int64_t b = a + 1; b < p.size(1); ++b) {
-        const double num = (S * power(H[l][a] - H[l][b])).sum().item<double>();
-        const double den = (S * (power(H[l][a]) + power(H[l][b]))).sum().item<double>() / 2;
-        const double r = den > 0 ? num / den : 0.0;
-        if (r < best) best = r, at = {a, b};
-        sum += r, ++n;
+        const torch::Tensor& Pa = power[l][a];
+        const torch::Tensor& Pb = power[l][b];
+        const double d = (0.5 * (Pa - Pb).square() / (Pa * Pb)).mean().item<double>();
+        if (d < best) best = d, at = {a, b};
+        sum += d, ++n;
       }
     cue.min_per_slice.push_back(best);
     cue.mean_per_slice.push_back(sum / double(n));

@@ -8,16 +8,18 @@
 // far layers at equal inverse-depth distance (the same PSF for an even pupil).
 //
 // The total-variation distance is the cue seen through a point source. A scene
-// is not a point: its image is the PSF convolved with a texture whose power
-// falls as 1/f² (natural images), so a PSF change that only moves light at
-// fine scale (a rotation of a many-lobed pattern) barely changes the image,
-// while a change of blur width does. The scene-weighted cue measures that:
-// for two depths' PSFs with transfer functions H, H' (DFT of the PSF, f in
-// cycles per pixel),
-//   r(z, z') = Σ_f S(f) |H − H'|² / Σ_f S(f) (|H|² + |H'|²)/2,
-//   S(f) = 1 / (|f|² + f₀²),
-// the fraction of a 1/f² texture's image power that changes between the two
-// depths (0: the same image, up to 2: opposite). f₀ keeps S finite at f = 0.
+// is not a point. Model it as a stationary Gaussian texture with a natural
+// image's power spectrum S(f) ∝ 1/(|f|² + f₀²) (normalised to mean 1 over
+// the frequencies, i.e. unit variance), blurred by the PSF and read with
+// white noise of variance σ² (relative to the texture's). The image is then
+// Gaussian with power spectrum P_z(f) = S(f)|H_z(f)|² + σ² (H: the PSF's DFT,
+// f in cycles per pixel), so **only the MTF |H| carries depth**: a PSF change
+// that is a shift, or mostly a change of phase (a pattern rotating at fine
+// scale), is invisible in a scene however large its total variation. The
+// scene cue between two depths is the symmetric Kullback-Leibler divergence
+// of the two image models per pixel (nats; independent frequencies),
+//   D(z, z') = mean_f ½ (P_z − P_z')² / (P_z P_z'),
+// so a patch of n pixels carries about n·D nats to tell z from z'.
 #pragma once
 #include <vector>
 
@@ -34,14 +36,16 @@ struct DepthDistinctness {
 DepthDistinctness depth_distinctness(const torch::Tensor& psf);
 
 struct SceneDepthCue {
-  std::vector<double> min_per_slice;              // [L] smallest r over depth pairs
-  std::vector<double> mean_per_slice;             // [L] mean r over depth pairs
+  std::vector<double> min_per_slice;              // [L] smallest D over depth pairs
+  std::vector<double> mean_per_slice;             // [L] mean D over depth pairs
   std::vector<std::pair<int64_t, int64_t>> pair;  // [L] the (z, z') of the smallest
 };
 
 // psf [L, Z, P, P] (bands or camera channels; each slice sums to 1); Z >= 2.
-// corner_cycles_per_px: f₀ of the texture spectrum (> 0). Computed in float64
-// on DFTs zero-padded to at least 2P and 128 samples.
-SceneDepthCue scene_depth_cue(const torch::Tensor& psf, double corner_cycles_per_px = 1.0 / 64);
+// noise_variance: σ² relative to the texture's variance (> 0);
+// corner_cycles_per_px: f₀ (> 0). Float64, on DFTs zero-padded to at least 2P
+// and 128 samples.
+SceneDepthCue scene_depth_cue(const torch::Tensor& psf, double noise_variance = 1e-3,
+                              double corner_cycles_per_px = 1.0 / 64);
 
 }  // namespace hsd::optics

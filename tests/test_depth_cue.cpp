@@ -41,31 +41,51 @@ TEST_CASE("depth distinctness: total variation is 0 for the same PSF, 1 for disj
   CHECK(e.per_band[0] == Approx(1.0).epsilon(1e-15));
 }
 
-TEST_CASE("scene depth cue: a one-pixel shift matches the closed form, the same PSF gives 0, a wider blur change more",
+TEST_CASE("scene depth cue: zero for a shift (only the MTF reaches a scene), the closed form of a two-tap blur, "
+          "growing with the change of blur width",
           "[optics][cue]") {
-  // H' = H exp(-2 pi i f_x) for a shift by one column; |H| = 1 for a point, so
-  // r = sum_f S(f) (2 - 2 cos 2 pi f_x) / sum_f S(f), S = 1 / (|f|^2 + f0^2).
-  const double f0 = 1.0 / 64;
+  const double f0 = 1.0 / 64, s2 = 1e-3;
   const int64_t N = 128;  // the cue's DFT size for P <= 64
-  double num = 0, den = 0;
+  // A one-pixel shift: total variation 1, and the same image statistics.
+  const auto shift = optics::scene_depth_cue(points(5, {{2, 2}, {2, 3}}), s2, f0);
+  CHECK(shift.min_per_slice[0] == Approx(0.0).margin(1e-14));
+  CHECK(optics::depth_distinctness(points(5, {{2, 2}, {2, 3}})).per_band[0] == Approx(1.0));
+
+  // A point against a two-tap blur (½, ½) along x: |H|² = 1 and cos²(π f_x);
+  // with S = 1/(|f|² + f0²) normalised to mean 1, P = S + σ², P' = S cos² + σ²,
+  // D = mean_f ½ (P − P')² / (P P').
+  std::vector<double> S(size_t(N * N)), fxs(size_t(N * N));
+  double Smean = 0;
   for (int64_t i = 0; i < N; ++i)
     for (int64_t j = 0; j < N; ++j) {
       const double fy = double(i < N / 2 ? i : i - N) / double(N), fx = double(j < N / 2 ? j : j - N) / double(N);
-      const double S = 1.0 / (fx * fx + fy * fy + f0 * f0);
-      num += S * (2.0 - 2.0 * std::cos(2.0 * M_PI * fx));
-      den += S;
+      S[size_t(i * N + j)] = 1.0 / (fx * fx + fy * fy + f0 * f0);
+      fxs[size_t(i * N + j)] = fx;
+      Smean += S[size_t(i * N + j)] / double(N * N);
     }
-  const auto shift = optics::scene_depth_cue(points(5, {{2, 2}, {2, 3}}), f0);
-  CHECK(shift.min_per_slice[0] == Approx(num / den).epsilon(1e-10));
-  CHECK(shift.mean_per_slice[0] == Approx(num / den).epsilon(1e-10));
+  double D = 0;
+  for (size_t k = 0; k < S.size(); ++k) {
+    const double s = S[k] / Smean, c = std::cos(M_PI * fxs[k]);
+    const double Pa = s + s2, Pb = s * c * c + s2;
+    D += 0.5 * (Pa - Pb) * (Pa - Pb) / (Pa * Pb) / double(S.size());
+  }
+  torch::Tensor two = points(5, {{2, 2}, {2, 2}});
+  two[0][1][2][2] = 0.5;
+  two[0][1][2][3] = 0.5;
+  const auto tap = optics::scene_depth_cue(two, s2, f0);
+  CHECK(tap.min_per_slice[0] == Approx(D).epsilon(1e-10));
+  CHECK(tap.mean_per_slice[0] == Approx(D).epsilon(1e-10));
+  CHECK(D > 0.01);
 
-  const auto same = optics::scene_depth_cue(points(5, {{2, 2}, {2, 2}}), f0);
-  CHECK(same.min_per_slice[0] == Approx(0.0).margin(1e-15));
+  // More noise hides more of it.
+  CHECK(optics::scene_depth_cue(two, 1e-1, f0).min_per_slice[0] < D);
 
   // Blur widths 1 (a point), 3 and 9 px: the change from a point grows with
-  // the blur, and a stack's smallest value is its closest pair's.
+  // the blur, and a stack's min and mean are over its pairs.
   const int64_t P = 15;
-  auto cue = [&](std::vector<torch::Tensor> slices) { return optics::scene_depth_cue(torch::stack(slices).unsqueeze(0), f0); };
+  auto cue = [&](std::vector<torch::Tensor> slices) {
+    return optics::scene_depth_cue(torch::stack(slices).unsqueeze(0), s2, f0);
+  };
   const double r13 = cue({box(P, 1), box(P, 3)}).min_per_slice[0];
   const double r19 = cue({box(P, 1), box(P, 9)}).min_per_slice[0];
   const double r39 = cue({box(P, 3), box(P, 9)}).min_per_slice[0];
