@@ -19,6 +19,8 @@
 #include "optics/fisher_design.h"
 #include "optics/psf.h"
 #include "optics/psf_atlas.h"
+#include "optics/scene_fisher.h"
+#include "optics/spectrum.h"
 #include "train/plot.h"
 #include "usage/hsd_fisher.h"
 
@@ -76,6 +78,20 @@ int run(const AppArgs& args) {
   s.nuisance = F.nuisance, s.aggregate = F.aggregate, s.aggregate_cap = F.aggregate_cap;
   optics::FisherSettings known = s;  // the same bounds with position and brightness known
   known.nuisance.clear();
+  optics::SceneFisherSettings scene;
+  {
+    std::vector<double> wl_m;
+    for (double w : s.wavelengths_nm) wl_m.push_back(w * 1e-9);
+    scene.camera_response =
+        optics::camera_response(cfg.sensor.camera, wl_m, cfg.optics.band_width_m()).to(torch::kFloat64);
+  }
+  scene.noise_variance = F.scene_noise_variance, scene.patch_px = F.scene_patch_px;
+  const bool scene_model = F.model == "scene";
+  // The configured bound (the design's objective) and the other one, for comparison.
+  auto bound = [&](bool scene_bound, const torch::Tensor& h, const optics::FisherSettings& st) {
+    return scene_bound ? optics::scene_crlb_report(g, material, h, st, scene) : optics::crlb_report(g, material, h, st);
+  };
+  auto report = [&](const torch::Tensor& h, const optics::FisherSettings& st) { return bound(scene_model, h, st); };
   setup_threads(cfg.threads);
   make_dirs(args.out_dir);
   const auto t0 = std::chrono::steady_clock::now();
@@ -86,12 +102,17 @@ int run(const AppArgs& args) {
     return optics::make_doe(o, material, cfg.seed, cpu);
   };
   const optics::Doe fresnel = family("fresnel"), spiral = family("spiral");
-  log::info("CRLB over " + std::to_string(s.wavelengths_nm.size()) + " bands x " + std::to_string(s.depths_m.size()) +
-            " depths, " + c10::str(F.photons) + " photons, background " + c10::str(F.background) + " per pixel");
-  const optics::CrlbReport r_fresnel = optics::crlb_report(g, material, fresnel.height().to(torch::kFloat64), s);
-  const optics::CrlbReport r_spiral = optics::crlb_report(g, material, spiral.height().to(torch::kFloat64), s);
-  const optics::CrlbReport k_fresnel = optics::crlb_report(g, material, fresnel.height().to(torch::kFloat64), known);
-  const optics::CrlbReport k_spiral = optics::crlb_report(g, material, spiral.height().to(torch::kFloat64), known);
+  if (scene_model)
+    log::info("scene CRLB of 1/z over " + std::to_string(s.depths_m.size()) + " depths: a 1/f^2 texture through the " +
+              "camera's channels (" + std::to_string(s.wavelengths_nm.size()) + " bands), noise " +
+              c10::str(F.scene_noise_variance) + " of its variance, " + std::to_string(F.scene_patch_px) + "^2-px patches");
+  else
+    log::info("CRLB over " + std::to_string(s.wavelengths_nm.size()) + " bands x " + std::to_string(s.depths_m.size()) +
+              " depths, " + c10::str(F.photons) + " photons, background " + c10::str(F.background) + " per pixel");
+  const optics::CrlbReport r_fresnel = report(fresnel.height().to(torch::kFloat64), s);
+  const optics::CrlbReport r_spiral = report(spiral.height().to(torch::kFloat64), s);
+  const optics::CrlbReport k_fresnel = report(fresnel.height().to(torch::kFloat64), known);
+  const optics::CrlbReport k_spiral = report(spiral.height().to(torch::kFloat64), known);
 
   // The design: from the unwrapped Fresnel lens (the Fresnel DOE exactly) or flat.
   const double lam0 = design.doe.design_wavelength_m, eta0 = material.index(lam0);
@@ -104,15 +125,16 @@ int run(const AppArgs& args) {
   const double hmax = fresnel.max_height_m();
   log::Progress progress("fisher design", long(F.steps));
   const optics::FisherDesign d = optics::design_fisher_doe(
-      g, material, s, start_on(design.doe_samples, design.doe_pitch_m), hmax, F, [&](int64_t k, double a) {
+      g, [&](const torch::Tensor& h) { return report(h, s); }, start_on(design.doe_samples, design.doe_pitch_m), hmax,
+      F, [&](int64_t k, double a) {
         char b[64];
         std::snprintf(b, sizeof b, "aggregate CRLB %.4g", a);
         progress.set_suffix(b);
         if (k > 0) progress.step();
       });
   progress.finish();
-  const optics::CrlbReport r_fisher = optics::crlb_report(g, material, d.height_m, s);
-  const optics::CrlbReport k_fisher = optics::crlb_report(g, material, d.height_m, known);
+  const optics::CrlbReport r_fisher = report(d.height_m, s);
+  const optics::CrlbReport k_fisher = report(d.height_m, known);
 
   // Outputs: the design on the config's DOE grid.
   const torch::Tensor h_full = optics::design_height_on_grid(
@@ -121,7 +143,13 @@ int run(const AppArgs& args) {
   optics::save_height_file(args.out_dir + "/fisher_height.pt", h_full, cfg.optics.doe_pitch_m);
   std::string nuis;
   for (const auto& n : s.nuisance) nuis += (nuis.empty() ? "" : ", ") + n;
-  const std::string agg_doc =
+  const std::string agg_doc = scene_model ?
+      "per depth t = crlb_inv_depth / inv_depth_spacing, the bound of 1/z in units of one depth layer for a " +
+      std::to_string(F.scene_patch_px) + "^2-px patch of a 1/f^2 Gaussian texture seen through the camera's channels "
+      "with white noise " + c10::str(F.scene_noise_variance) + " of its variance (optics/scene_fisher.h); aggregate = the " +
+      F.aggregate + (F.aggregate == "capped_mean" ? " (mean of min(t, " + c10::str(F.aggregate_cap) + "))" : std::string()) +
+      " of t over the depths; " + (nuis.find('N') == std::string::npos ? std::string("the texture's contrast known")
+                                                                        : std::string("the texture's contrast unknown")) :
       "per (wavelength, depth) grid point t = sqrt(((crlb_inv_depth / inv_depth_spacing)^2 + (crlb_wavelength / "
       "band_width)^2) / 2), the bound in units of one depth layer and one band; aggregate = the " + F.aggregate +
       (F.aggregate == "capped_mean" ? " (mean of min(t, " + c10::str(F.aggregate_cap) + "))" : std::string()) +
@@ -142,6 +170,20 @@ int run(const AppArgs& args) {
   j["spiral"]["without_nuisance"] = report_json(k_spiral);
   j["fisher"]["without_nuisance"] = report_json(k_fisher);
   j["fisher"]["curve"] = d.curve;
+  j["model"] = F.model;
+  // The other bound of the same three designs, so a point design and a scene design can be compared both ways.
+  {
+    const bool other = !scene_model;
+    std::string line = std::string("the ") + (other ? "scene" : "point-source") + " bound's aggregate of the same designs:";
+    for (const auto& [name, h] : std::vector<std::pair<std::string, torch::Tensor>>{
+             {"fresnel", fresnel.height().to(torch::kFloat64)}, {"spiral", spiral.height().to(torch::kFloat64)},
+             {"fisher", d.height_m}}) {
+      const double a = bound(other, h, s).aggregate.item<double>();
+      j[name][other ? "scene_aggregate" : "point_aggregate"] = a;
+      line += " " + name + " " + c10::str(a);
+    }
+    log::info(line);
+  }
   write_text_file(args.out_dir + "/crlb.json", j.dump(2) + "\n");
   char line[320];
   std::string md = "# CRLB of the DOE designs\n\n" + std::string("Aggregate: ") + agg_doc + ".\n\n" +

@@ -321,6 +321,13 @@ Config parse_config(const Json& resolved) {
       f->fail("aggregate", "expected \"capped_mean\", \"median\" or \"mean\", got \"" + F.aggregate + "\"");
     F.aggregate_cap = f->get_number("aggregate_cap", F.aggregate_cap);
     if (!(F.aggregate_cap > 0.0 && F.aggregate_cap <= 1e6)) f->fail("aggregate_cap", "must be in (0, 1e6]");
+    F.model = f->get_string("model", F.model);
+    if (F.model != "point" && F.model != "scene") f->fail("model", "expected \"point\" or \"scene\", got \"" + F.model + "\"");
+    F.scene_noise_variance = f->get_number("scene_noise_variance", F.scene_noise_variance);
+    if (!(F.scene_noise_variance > 0.0 && F.scene_noise_variance <= 1.0))
+      f->fail("scene_noise_variance", "must be in (0, 1] (relative to the texture's variance)");
+    F.scene_patch_px = f->get_int("scene_patch_px", F.scene_patch_px);
+    if (F.scene_patch_px < 8 || F.scene_patch_px > 4096) f->fail("scene_patch_px", "must be in [8, 4096]");
   }
   if (auto m = r.optional_child("model")) {
     auto& M = c.model;

@@ -103,6 +103,13 @@ struct FisherConfig {
   // "capped_mean" (each point capped at aggregate_cap), "median", "mean" (the earlier one).
   std::string aggregate = "capped_mean";
   double aggregate_cap = 10.0;        // layers/bands
+  // What the bound is for (optics/scene_fisher.h): "point" a point source of
+  // known spectrum (Shechtman et al., the paper's Fisher design); "scene" a
+  // 1/f² Gaussian texture seen in the camera's RGB channels (only the MTF
+  // carries depth; the bound of 1/z alone, "N" in nuisance = contrast unknown).
+  std::string model = "point";
+  double scene_noise_variance = 1e-3;  // scene: white noise relative to the texture's variance
+  int64_t scene_patch_px = 64;         // scene: the bound is for a patch of this many pixels squared
 };
 
 // The reconstruction network (model/unet.h).

@@ -29,6 +29,14 @@ torch::Tensor wrap_height(const torch::Tensor& raw, double max_height_m) {
 FisherDesign design_fisher_doe(const FisherGeometry& g, const Material& material, const FisherSettings& s,
                                const torch::Tensor& start_raw_height_m, double max_height_m, const FisherConfig& cfg,
                                const std::function<void(int64_t, double)>& on_step) {
+  return design_fisher_doe(
+      g, [&](const torch::Tensor& h) { return crlb_report(g, material, h, s); }, start_raw_height_m, max_height_m, cfg,
+      on_step);
+}
+
+FisherDesign design_fisher_doe(const FisherGeometry& g, const CrlbObjective& objective,
+                               const torch::Tensor& start_raw_height_m, double max_height_m, const FisherConfig& cfg,
+                               const std::function<void(int64_t, double)>& on_step) {
   if (!(max_height_m > 0)) throw InputError("Fisher design: the maximum height must be > 0");
   FisherDesign d;
   d.basis = cfg.basis;
@@ -48,7 +56,7 @@ FisherDesign design_fisher_doe(const FisherGeometry& g, const Material& material
   };
   torch::optim::Adam opt({d.parameters_um}, torch::optim::AdamOptions(cfg.lr));
   for (int64_t k = 0; k <= cfg.steps; ++k) {
-    const CrlbReport r = crlb_report(g, material, height(), s);
+    const CrlbReport r = objective(height());
     const double a = r.aggregate.item<double>();
     if (!std::isfinite(a)) throw NumericalError("Fisher design step " + std::to_string(k) + ": the aggregated CRLB is not finite");
     d.curve.push_back(a);

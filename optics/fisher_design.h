@@ -29,8 +29,16 @@ torch::Tensor fresnel_lens_height(int64_t n, double pitch_m, double design_wavel
                                   double design_depth_m, double sensor_distance_m);
 
 // Runs the design on g's grid from start_raw_height_m [N, N] (unwrapped);
-// on_step(step, aggregate) reports progress.
+// on_step(step, aggregate) reports progress. The objective is crlb_report's
+// aggregate (the point-source bound).
 FisherDesign design_fisher_doe(const FisherGeometry& g, const Material& material, const FisherSettings& s,
+                               const torch::Tensor& start_raw_height_m, double max_height_m, const FisherConfig& cfg,
+                               const std::function<void(int64_t, double)>& on_step = {});
+
+// The same with any bound: objective(height [N, N] float64, requires grad)
+// returns a report whose aggregate is minimised (e.g. scene_fisher.h's).
+using CrlbObjective = std::function<CrlbReport(const torch::Tensor&)>;
+FisherDesign design_fisher_doe(const FisherGeometry& g, const CrlbObjective& objective,
                                const torch::Tensor& start_raw_height_m, double max_height_m, const FisherConfig& cfg,
                                const std::function<void(int64_t, double)>& on_step = {});
 

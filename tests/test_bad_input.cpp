@@ -174,6 +174,8 @@ TEST_CASE("bad input: every app refuses stray, repeated and malformed arguments 
         {F.cfg + " --set model.levels=5 --out " + out, 2, "model.levels", ""},
         {F.cfg + " --set model.preinverse=fft --out " + out, 2, "model.preinverse", ""},
         {F.cfg + " --set train.depth_loss=l2 --out " + out, 2, "train.depth_loss", ""},
+        {F.cfg + " --set fisher.model=gaussian --out " + out, 2, "fisher.model", ""},
+        {F.cfg + " --set fisher.scene_noise_variance=0 --out " + out, 2, "fisher.scene_noise_variance", ""},
         {F.cfg + " --set train.steps=0 --out " + out, 2, "train.steps", ""},
         {F.cfg + " --set \"_note=$(printf '[%.0s' $(seq 100))$(printf ']%.0s' $(seq 100))\" --out " + out, 2, "_note", ""},
     });
