@@ -89,8 +89,8 @@ TEST_CASE("scene fisher: the channel PSFs' spectrum has autograd derivatives equ
   CHECK((m(q) - m(q_shift)).abs().max().item<double>() < 1e-12 * m(q).max().item<double>());
 }
 
-TEST_CASE("scene fisher: the bound per depth is sqrt of the inverse information; its gradient in the height map "
-          "matches finite differences in float64; the design lowers it",
+TEST_CASE("scene fisher: the bound per depth is sqrt of the inverse information, its gradient in the height map "
+          "matches finite differences in float64, and the design lowers it",
           "[fisher][scene]") {
   torch::manual_seed(2);
   const auto g = small_geometry();
