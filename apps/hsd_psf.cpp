@@ -76,9 +76,7 @@ int run(const AppArgs& args) {
   if (spec.depths_m.size() >= 2) {
     // Per band, and per camera channel (the sensor sums the bands with the camera's response, which can wash out a
     // cue that every band carries, e.g. a PSF that rotates with depth at a different rate per wavelength).
-    const torch::Tensor w = omega.to(out.psf.dtype()).to(out.psf.device());
-    const torch::Tensor rgb =
-        torch::einsum("cl,lkpq->ckpq", {w, out.psf}) / w.sum(1).clamp_min(1e-30).view({-1, 1, 1, 1});
+    const torch::Tensor rgb = optics::camera_channel_mean(out.psf, omega);  // [C, Z, P, P]
     const char* channel[] = {"R", "G", "B"};
     auto cue_lines = [&](const torch::Tensor& psf, const std::string& title, auto label) {
       const auto dd = optics::depth_distinctness(psf);

@@ -35,6 +35,13 @@ struct DepthDistinctness {
 // psf [L, Z, P, P] (each slice sums to 1); Z >= 2.
 DepthDistinctness depth_distinctness(const torch::Tensor& psf);
 
+// The scene model's pieces, shared with scene_fisher.h: the DFT size for
+// P-px PSFs (at least 2P and 128), |H|² of PSFs [..., P, P] zero-padded to
+// it [..., N, N], and the texture spectrum S [N, N] (mean 1).
+int64_t scene_dft_size(int64_t psf_px);
+torch::Tensor psf_mtf2(const torch::Tensor& psf, int64_t n);
+torch::Tensor natural_texture_spectrum(int64_t n, double corner_cycles_per_px, c10::ScalarType dtype);
+
 struct SceneDepthCue {
   std::vector<double> min_per_slice;              // [L] smallest D over depth pairs
   std::vector<double> mean_per_slice;             // [L] mean D over depth pairs

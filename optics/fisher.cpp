@@ -126,14 +126,27 @@ const std::vector<std::string>& nuisance_names() {
 }
 }  // namespace
 
+void check_aggregate(const FisherSettings& s) {
+  if (s.aggregate != "capped_mean" && s.aggregate != "median" && s.aggregate != "mean")
+    throw InputError("config key fisher.aggregate: expected capped_mean, median or mean, got \"" + s.aggregate + "\"");
+  if (!(s.aggregate_cap > 0)) throw InputError("config key fisher.aggregate_cap: must be > 0");
+}
+
+void set_aggregates(CrlbReport& r, const torch::Tensor& t, const FisherSettings& s) {
+  const torch::Tensor mean = t.mean(), capped = t.clamp_max(s.aggregate_cap).mean();
+  const torch::Tensor median = std::get<0>(t.view(-1).sort()).select(0, (t.numel() - 1) / 2);  // lower median
+  r.aggregate_mean = mean.item<double>();
+  r.aggregate_capped = capped.item<double>();
+  r.aggregate_median = median.item<double>();
+  r.aggregate = s.aggregate == "mean" ? mean : s.aggregate == "median" ? median : capped;
+}
+
 CrlbReport crlb_report(const FisherGeometry& g, const Material& material, const torch::Tensor& height_m,
                        const FisherSettings& s) {
   for (const auto& n : s.nuisance)
     if (std::find(nuisance_names().begin(), nuisance_names().end(), n) == nuisance_names().end())
       throw InputError("config key fisher.nuisance: \"" + n + "\" is not a parameter (x, y, N)");
-  if (s.aggregate != "capped_mean" && s.aggregate != "median" && s.aggregate != "mean")
-    throw InputError("config key fisher.aggregate: expected capped_mean, median or mean, got \"" + s.aggregate + "\"");
-  if (!(s.aggregate_cap > 0)) throw InputError("config key fisher.aggregate_cap: must be > 0");
+  check_aggregate(s);
   auto has = [&](const char* n) { return std::find(s.nuisance.begin(), s.nuisance.end(), n) != s.nuisance.end(); };
   CrlbReport r;
   r.wavelengths_nm = s.wavelengths_nm;
@@ -173,13 +186,7 @@ CrlbReport crlb_report(const FisherGeometry& g, const Material& material, const 
       terms.push_back(((u * u + v * v) * 0.5).sqrt());
     }
   }
-  const torch::Tensor t = torch::stack(terms);
-  const torch::Tensor mean = t.mean(), capped = t.clamp_max(s.aggregate_cap).mean();
-  const torch::Tensor median = std::get<0>(t.view(-1).sort()).select(0, (t.numel() - 1) / 2);  // lower median
-  r.aggregate_mean = mean.item<double>();
-  r.aggregate_capped = capped.item<double>();
-  r.aggregate_median = median.item<double>();
-  r.aggregate = s.aggregate == "mean" ? mean : s.aggregate == "median" ? median : capped;
+  set_aggregates(r, torch::stack(terms), s);
   r.crlb_inv_depth = torch::stack(cd).detach().view({L, Z});
   r.crlb_wavelength_nm = torch::stack(cl).detach().view({L, Z});
   r.condition = torch::tensor(cond, torch::kFloat64).view({L, Z});

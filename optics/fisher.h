@@ -108,6 +108,12 @@ struct FisherSettings {
   double aggregate_cap = 10.0;                         // cap of t per grid point (layers/bands)
 };
 
+// InputError unless s.aggregate and s.aggregate_cap are valid.
+void check_aggregate(const FisherSettings& s);
+// r.aggregate (the one s.aggregate names, differentiable) and the three
+// aggregate_* values from the per-point bounds t (any shape).
+void set_aggregates(CrlbReport& r, const torch::Tensor& t, const FisherSettings& s);
+
 // The CRLB over the grid for height_m; differentiable in height_m when it requires grad.
 CrlbReport crlb_report(const FisherGeometry& g, const Material& material, const torch::Tensor& height_m,
                        const FisherSettings& s);

@@ -1,12 +1,12 @@
 #include "optics/scene_fisher.h"
 
 #include <algorithm>
-#include <cmath>
 
 #include <torch/torch.h>
 
 #include "common/error.h"
-#include "common/fft_size.h"
+#include "optics/depth_distinctness.h"
+#include "optics/spectrum.h"
 
 namespace hsd::optics {
 
@@ -36,12 +36,9 @@ torch::Tensor camera_channel_psfs(const FisherGeometry& g, const Material& mater
     const double deta = material.index((w + 0.5) * 1e-9) - material.index((w - 0.5) * 1e-9);  // per nm
     psfs.push_back(point_psf(g, height_m, inv_depth, torch::tensor(w, torch::kFloat64), eta0, deta));
   }
-  const torch::Tensor band = torch::stack(psfs);  // [L, P, P]
-  const torch::Tensor omega = camera_response.to(torch::kFloat64);
-  const torch::Tensor den = omega.sum(1);
-  if (!(den.min().item<double>() > 0))
+  if (!(camera_response.sum(1).min().item<double>() > 0))
     throw InputError("scene Fisher information: a camera channel has no response over the Fisher bands");
-  return torch::einsum("cl,lpq->cpq", {omega, band}) / den.view({-1, 1, 1});
+  return camera_channel_mean(torch::stack(psfs), camera_response);  // [C, P, P]
 }
 
 CrlbReport scene_crlb_report(const FisherGeometry& g, const Material& material, const torch::Tensor& height_m,
@@ -49,15 +46,11 @@ CrlbReport scene_crlb_report(const FisherGeometry& g, const Material& material, 
   if (!(scene.noise_variance > 0)) throw InputError("config key fisher.scene_noise_variance: must be > 0");
   if (!(scene.corner_cycles_per_px > 0)) throw InputError("scene Fisher information: the corner frequency must be > 0");
   if (scene.patch_px < 8) throw InputError("config key fisher.scene_patch_px: must be >= 8");
-  if (s.aggregate != "capped_mean" && s.aggregate != "median" && s.aggregate != "mean")
-    throw InputError("config key fisher.aggregate: expected capped_mean, median or mean, got \"" + s.aggregate + "\"");
+  check_aggregate(s);
   const bool contrast_unknown = std::find(s.nuisance.begin(), s.nuisance.end(), "N") != s.nuisance.end();
   const bool design = height_m.requires_grad();
-  const int64_t P = g.window_px, N = std::max<int64_t>(128, fast_fft_size(2 * P));
-  const torch::Tensor f = torch::fft::fftfreq(N, torch::kFloat64);
-  torch::Tensor S = 1.0 / (f.view({-1, 1}).square() + f.view({1, -1}).square() +
-                           scene.corner_cycles_per_px * scene.corner_cycles_per_px);
-  S = S / S.mean();
+  const int64_t N = scene_dft_size(g.window_px);
+  const torch::Tensor S = natural_texture_spectrum(N, scene.corner_cycles_per_px, torch::kFloat64);
   const double patch_share = double(scene.patch_px * scene.patch_px) / double(N * N);
 
   CrlbReport r;
@@ -71,9 +64,7 @@ CrlbReport scene_crlb_report(const FisherGeometry& g, const Material& material, 
     const torch::Tensor D = torch::tensor(r.inv_depths[size_t(zi)], torch::kFloat64).requires_grad_(true);
     const torch::Tensor a = torch::ones({}, torch::kFloat64).requires_grad_(true);
     const torch::Tensor h = camera_channel_psfs(g, material, height_m, D, s.wavelengths_nm, scene.camera_response);
-    const torch::Tensor H = torch::fft::fft2(torch::constant_pad_nd(h, {0, N - P, 0, N - P}));  // [C, N, N]
-    const torch::Tensor mtf2 = torch::real(H).square() + torch::imag(H).square();
-    const torch::Tensor power = a * S * mtf2 + scene.noise_variance;
+    const torch::Tensor power = a * S * psf_mtf2(h, N) + scene.noise_variance;  // [C, N, N]
     std::vector<torch::Tensor> params{D};
     if (contrast_unknown) params.push_back(a);
     const auto J = jacobian_by_autograd(power, params, design);
@@ -84,13 +75,7 @@ CrlbReport scene_crlb_report(const FisherGeometry& g, const Material& material, 
     cd.push_back(c.crlb[0]);
     terms.push_back(c.crlb[0] / s.inv_depth_spacing);
   }
-  const torch::Tensor t = torch::stack(terms);
-  const torch::Tensor mean = t.mean(), capped = t.clamp_max(s.aggregate_cap).mean();
-  const torch::Tensor median = std::get<0>(t.view(-1).sort()).select(0, (t.numel() - 1) / 2);
-  r.aggregate_mean = mean.item<double>();
-  r.aggregate_capped = capped.item<double>();
-  r.aggregate_median = median.item<double>();
-  r.aggregate = s.aggregate == "mean" ? mean : s.aggregate == "median" ? median : capped;
+  set_aggregates(r, torch::stack(terms), s);
   r.crlb_inv_depth = torch::stack(cd).detach().view({1, Z});
   r.crlb_wavelength_nm = torch::zeros({1, Z}, torch::kFloat64);
   r.condition = torch::tensor(cond, torch::kFloat64).view({1, Z});

@@ -107,6 +107,18 @@ double SpectralTable::band_mean(const std::string& column, double lo, double hi)
   return integral / (hi - lo);
 }
 
+torch::Tensor camera_channel_mean(const torch::Tensor& band, const torch::Tensor& omega) {
+  if (omega.dim() != 2 || band.dim() < 1 || omega.size(1) != band.size(0))
+    throw InputError("camera_channel_mean: omega must be [C, L] and the bands [L, ...], got " + c10::str(omega.sizes()) +
+                     " and " + c10::str(band.sizes()));
+  const torch::Tensor w = omega.to(band.dtype()).to(band.device());
+  const torch::Tensor sum = torch::tensordot(w, band, {1}, {0});  // [C, ...]
+  std::vector<int64_t> shape(size_t(band.dim()), 1);
+  shape[0] = w.size(0);
+  const torch::Tensor den = w.sum(1).view(shape);
+  return sum / den.clamp_min(1e-30) * (den > 0);
+}
+
 torch::Tensor camera_response(const std::string& camera, const std::vector<double>& wavelengths_m,
                               double band_width_m) {
   const std::string path = spectra_path("camera_sensitivity_" + camera + ".csv");

@@ -52,6 +52,11 @@ class SpectralTable {
 torch::Tensor camera_response(const std::string& camera, const std::vector<double>& wavelengths_m,
                               double band_width_m);
 
+// What a camera channel sees of per-band images or PSFs: band [L, ...] ->
+// [C, ...], Σ_l Ω_cl band_l / Σ_l Ω_cl (a channel with no response gives
+// zeros). Ω [C, L] (camera_response); any float dtype, the band's kept.
+torch::Tensor camera_channel_mean(const torch::Tensor& band, const torch::Tensor& omega);
+
 // Illuminant spectral power per band: float32 [L], band means of the column
 // `name` of data/spectra/illuminants.csv, scaled to a maximum of 1. A
 // reflectance scene's radiance is reflectance × this. InputError naming
