@@ -115,6 +115,8 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
       const DepthErrors dc = depth_errors(constant_depth_map(sc.depth_m, baseline_inv_depth), sc.depth_m, valid);
       m.baseline_constant_depth_rmse_m = dc.rmse_m, m.baseline_constant_depth_mae_m = dc.mae_m;
     }
+    for (int64_t w : kOracleWindowsPx)
+      m.oracle_depth_rmse_m.push_back(depth_errors(box_oracle_depth_map(sc.depth_m, valid, w), sc.depth_m, valid).rmse_m);
     const std::string stem = out_dir + "/" + std::filesystem::path(ls.file).stem().string();
     // Pictures: truth | reconstruction | |error| x4 | true depth | predicted depth.
     const torch::Tensor truth_rgb = data::spectral_to_linear_srgb(radiance, bands, bw);
@@ -181,6 +183,10 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     a.baseline_upsampling_hs_psnr_db += m.baseline_upsampling_hs_psnr_db / n;
     a.baseline_upsampling_hs_ssim += m.baseline_upsampling_hs_ssim / n;
   }
+  a.oracle_depth_rmse_m.assign(kOracleWindowsPx.size(), 0.0);
+  for (const auto& m : res.scenes)
+    for (size_t k = 0; k < kOracleWindowsPx.size(); ++k) a.oracle_depth_rmse_m[k] += m.oracle_depth_rmse_m[k] / n;
+  a.depth_effective_resolution_px = effective_resolution_px(kOracleWindowsPx, a.oracle_depth_rmse_m, a.depth_rmse_m);
   if (constant_known) {
     a.baseline_constant_depth_rmse_m = a.baseline_constant_depth_mae_m = 0.0;
     for (const auto& m : res.scenes)
@@ -202,6 +208,11 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
       j["baseline_constant_depth_rmse_m"] = m.baseline_constant_depth_rmse_m;
       j["baseline_constant_depth_mae_m"] = m.baseline_constant_depth_mae_m;
     }
+    Json o = Json::object();
+    for (size_t k = 0; k < m.oracle_depth_rmse_m.size(); ++k) o[std::to_string(kOracleWindowsPx[k])] = m.oracle_depth_rmse_m[k];
+    j["reference_oracle_depth_rmse_m"] = o;
+    if (!std::isnan(m.depth_effective_resolution_px))  // JSON has no infinity: coarser than every window is null
+      j["depth_effective_resolution_px"] = std::isfinite(m.depth_effective_resolution_px) ? Json(m.depth_effective_resolution_px) : Json();
     return j;
   };
   Json j = row(a);
@@ -214,7 +225,10 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
                "scene radiance = reflectance x " + cfg.sensor.illuminant + " (band means, max 1); SSIM per Wang et al. 2004 "
                "(11x11 Gaussian window, sigma 1.5) per band, averaged; every metric over the scene's valid pixels; "
                "baselines on the same pixels: the spectral-upsampling cube of the same sensor image (no network) and "
-               "one constant depth (the training split's median inverse depth)";
+               "one constant depth (the training split's median inverse depth); reference_oracle_depth_rmse_m: the "
+               "resolution oracle (the true inverse depth averaged over a w x w box of valid pixels, w in px), a ruler "
+               "for how fine the scenes' depth is, not a baseline; depth_effective_resolution_px: the box whose oracle "
+               "scores the model's depth RMSE (mean over scenes)";
   write_text_file(out_dir + "/metrics.json", j.dump(2) + "\n");
   std::string md = "# Evaluation (" + split + " split)\n\n" + j["notes"].get<std::string>() + ".\n\n" +
                    "| scene | HS PSNR [dB] | HS SSIM | lum PSNR [dB] | lum SSIM | depth RMSE [m] | depth MAE [m] | ColorChecker RMSE |\n"
@@ -240,6 +254,24 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
   md += "\nIn brackets: the baseline on the same pixels (HS: the upsampling cube of the sensor image alone; depth: ";
   md += constant_known ? "the constant " + c10::str(1.0 / baseline_inv_depth) + " m" : std::string("not known");
   md += "). A model that does not beat its baseline has learned nothing from the image.\n";
+  md += "\nThe resolution oracle (the true inverse depth averaged over a w × w box; what a depth sensor exact at w "
+        "pixels and blind below would score), mean depth RMSE [m] over the scenes:\n\n| w [px] |";
+  for (int64_t w : kOracleWindowsPx) md += " " + std::to_string(w) + " |";
+  md += "\n|---|";
+  for (size_t k = 0; k < kOracleWindowsPx.size(); ++k) md += "---|";
+  md += "\n| oracle RMSE |";
+  for (double r : a.oracle_depth_rmse_m) {
+    std::snprintf(buf, sizeof buf, " %.4f |", r);
+    md += buf;
+  }
+  std::snprintf(buf, sizeof buf,
+                "\n\nThe model's depth RMSE (%.4f m) equals the oracle's at w = %s: depth structure finer than that is "
+                "not recovered.\n",
+                a.depth_rmse_m,
+                std::isfinite(a.depth_effective_resolution_px)
+                    ? (c10::str(int(std::lround(a.depth_effective_resolution_px))) + " px").c_str()
+                    : ("more than " + std::to_string(kOracleWindowsPx.back()) + " px").c_str());
+  md += buf;
   md += "\nPictures: `<scene>_compare.png` (truth | reconstruction | |error| x4 | true depth | predicted depth), "
         "`<scene>_spectra.png`, `colorchecker_spectra.png`, `psf_atlas.png`.\n";
   write_text_file(out_dir + "/report.md", md);

@@ -25,7 +25,15 @@ struct SceneMetrics {
   // Baselines on the same pixels (train/baselines.h); NaN when unknown.
   double baseline_constant_depth_rmse_m = std::nan(""), baseline_constant_depth_mae_m = std::nan("");
   double baseline_upsampling_hs_psnr_db = 0, baseline_upsampling_hs_ssim = 0;
+  // The resolution oracle (baselines.h) on the same pixels, one RMSE [m] per
+  // window of kOracleWindowsPx; on the mean, the window whose oracle RMSE
+  // equals the model's (its effective depth resolution, px; +inf: coarser than all).
+  std::vector<double> oracle_depth_rmse_m;
+  double depth_effective_resolution_px = std::nan("");
 };
+
+// The resolution oracle's windows [px] in every evaluation.
+inline const std::vector<int64_t> kOracleWindowsPx{3, 5, 9, 15, 31, 63, 127};
 
 struct EvalResult {
   std::vector<SceneMetrics> scenes;
