@@ -8,6 +8,8 @@
 #include <opencv2/imgproc.hpp>
 #include <torch/torch.h>
 
+#include "data/depth_structure.h"
+
 #include "common/error.h"
 #include "data/preview.h"
 #include "optics/spectrum.h"
@@ -178,6 +180,7 @@ SceneRealism measure_realism(const SpectralScene& scene, const RealismSpec& spec
   if (has_depth) {
     r.inv_depth_hist = inverse_depth_histogram(scene.depth_m.reshape({H, W}), valid, spec.near_m, spec.far_m, spec.depth_bins);
     r.inv_depth_quarters = quarters(r.inv_depth_hist);
+    r.depth_structure = depth_structure(scene.depth_m.reshape({H, W}), valid.to(torch::kFloat32));
   }
   return r;
 }
@@ -188,7 +191,7 @@ RealismSummary summarise_realism(std::vector<SceneRealism> scenes) {
   SceneRealism& m = s.mean;
   m.name = "mean";
   const double n = double(std::max<size_t>(1, s.scenes.size()));
-  double pcs = 0, pixels = 0;
+  double pcs = 0, pixels = 0, structure = 0, with_structure = 0;
   for (const auto& r : s.scenes) {
     m.textured_fraction += r.textured_fraction / n;
     m.psd_slope += r.psd_slope / n;
@@ -200,12 +203,14 @@ RealismSummary summarise_realism(std::vector<SceneRealism> scenes) {
       for (size_t i = 0; i < r.inv_depth_hist.size() && i < m.inv_depth_hist.size(); ++i)
         m.inv_depth_hist[i] += r.inv_depth_hist[i] * double(r.valid_pixels);
       pixels += double(r.valid_pixels);
+      if (std::isfinite(r.depth_structure)) structure += r.depth_structure, with_structure += 1;
     }
   }
   m.pcs_99 = int64_t(std::lround(pcs));
   m.has_depth = pixels > 0;
   for (auto& v : m.inv_depth_hist) v /= std::max(1.0, pixels);
   if (m.has_depth) m.inv_depth_quarters = quarters(m.inv_depth_hist);
+  m.depth_structure = with_structure > 0 ? structure / with_structure : std::nan("");
   return s;
 }
 
@@ -236,6 +241,7 @@ Json scene_json(const SceneRealism& r) {
          {"pcs_99", r.pcs_99},
          {"rgb_unexplained", r.rgb_unexplained}};
   if (r.has_depth) j["inv_depth_hist"] = r.inv_depth_hist, j["inv_depth_quarters"] = r.inv_depth_quarters;
+  if (std::isfinite(r.depth_structure)) j["depth_structure"] = r.depth_structure;
   return j;
 }
 std::string row(const SceneRealism& r) {
@@ -249,8 +255,10 @@ std::string row(const SceneRealism& r) {
       q += b;
     }
   }
-  std::snprintf(buf, sizeof buf, "| %s | %.3f | %.2f | %lld | %.3f | %s |\n", r.name.c_str(), r.textured_fraction,
-                r.psd_slope, (long long)r.pcs_99, r.rgb_unexplained, q.c_str());
+  char ds[16] = "-";
+  if (std::isfinite(r.depth_structure)) std::snprintf(ds, sizeof ds, "%.2f", r.depth_structure);
+  std::snprintf(buf, sizeof buf, "| %s | %.3f | %.2f | %lld | %.3f | %s | %s |\n", r.name.c_str(), r.textured_fraction,
+                r.psd_slope, (long long)r.pcs_99, r.rgb_unexplained, q.c_str(), ds);
   return buf;
 }
 }  // namespace
@@ -267,8 +275,9 @@ Json realism_json(const RealismSummary& s, const SceneRealism* reference) {
 
 std::string realism_markdown(const RealismSummary& s, const SceneRealism* reference) {
   std::string md =
-      "| scene | textured fraction | PSD slope | PCs for 99 % | RGB-unexplained | inverse-depth quarters (far .. near) |\n"
-      "|---|---|---|---|---|---|\n";
+      "| scene | textured fraction | PSD slope | PCs for 99 % | RGB-unexplained | inverse-depth quarters (far .. near) | "
+      "depth structure |\n"
+      "|---|---|---|---|---|---|---|\n";
   for (const auto& r : s.scenes) md += row(r);
   SceneRealism m = s.mean;
   m.name = "**mean**";

@@ -17,10 +17,13 @@
 //     S [N, L]: 0 when every spectrum is a linear function of its RGB, as with
 //     one spectrum per colour (RGB lifting);
 //   * depth histogram: the valid pixels' fractions in equal bins of inverse
-//     depth over [1/far, 1/near] (values outside go to the end bins).
+//     depth over [1/far, 1/near] (values outside go to the end bins);
+//   * depth structure: how fine the depth map is at a fifth of the image's
+//     smaller side (data/depth_structure.h), compared with real depth maps.
 // Luminance is CIE Y under D65 (white = 1) and RGB the camera response under
 // D65, for reflectance scenes; for radiance scenes the illuminant is 1.
 #pragma once
+#include <cmath>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -64,6 +67,7 @@ struct SceneRealism {
   int64_t pcs_99 = 0;
   std::vector<double> inv_depth_hist;      // depth_bins fractions, near end last (1/far .. 1/near)
   std::vector<double> inv_depth_quarters;  // the same in four quarters
+  double depth_structure = std::nan("");   // depth_structure.h (NaN without depth)
   bool has_depth = true;
 };
 

@@ -3,6 +3,7 @@
 #include <array>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <memory>
 
 #include <torch/torch.h>
@@ -16,6 +17,7 @@
 #include "data/measured_reflectances.h"
 #include "data/real_test_set.h"
 #include "data/realism_stats.h"
+#include "data/depth_structure.h"
 #include "data/scene_generator.h"
 #include "data/texture_bank.h"
 #include "data/textured_scene.h"
@@ -60,6 +62,7 @@ Manifest generate_dataset(const Config& cfg, const std::string& dir, bool cache)
   }
   const RealismSpec rspec = with_band_weights({bands, bw, cfg.sensor.camera, g.depth_min_m, g.depth_max_m, 8});
   std::vector<SceneRealism> realism;
+  std::map<std::string, std::vector<double>> structure_by_layout;  // depth structure per layout
   const torch::Tensor d65 = optics::illuminant_bands("D65", bands, bw);
   const std::array<std::pair<const char*, int64_t>, 3> splits{
       {{"train", g.train_scenes}, {"val", g.val_scenes}, {"test", g.test_scenes}}};
@@ -91,6 +94,7 @@ Manifest generate_dataset(const Config& cfg, const std::string& dir, bool cache)
                             ? generate_textured_tabletop_scene(g, SceneSources{*measured, *textures}, bands, seed)
                             : generate_dead_leaves_scene(g, SceneSources{*measured, *textures}, bands, seed);
       realism.push_back(measure_realism(gs.scene, rspec, stem));
+      structure_by_layout[layout].push_back(realism.back().depth_structure);
       write_scene(stem, gs, name);
       progress.step();
     }
@@ -110,11 +114,46 @@ Manifest generate_dataset(const Config& cfg, const std::string& dir, bool cache)
   if (!realism.empty()) {
     const RealismSummary sum = summarise_realism(std::move(realism));
     const SceneRealism ref = cave_realism(rspec);
-    write_text_file(dir + "/realism.json", realism_json(sum, &ref).dump(2) + "\n");
-    write_text_file(dir + "/realism.md", realism_markdown(sum, &ref));
-    log::info("realism of the generated scenes (" + dir + "/realism.md; reference: the CAVE balloons cube):\n" +
-              realism_markdown(sum, &ref));
+    // Depth structure against real depth maps at the same size and range (depth_structure.h).
+    Json rj = realism_json(sum, &ref);
+    std::string md = realism_markdown(sum, &ref);
+    md += "\nDepth structure (the resolution oracle's depth RMSE at a " +
+          std::to_string(structure_window_px(g.height_px, g.width_px)) +
+          "-px box over that of the map's median depth; 0 = smooth at that scale, 1 = no better than a constant): "
+          "real depth maps at this size and depth range against the generated layouts.\n\n| depth map | depth structure |\n|---|---|\n";
+    Json refs = Json::array();
+    double real_sum = 0, real_lo = 1e9, real_hi = -1e9;
+    const auto maps = reference_depth_maps(g.height_px, g.width_px, g.depth_min_m, g.depth_max_m);
+    for (const auto& r : maps) {
+      const double v = depth_structure(r.depth_m, r.mask);
+      real_sum += v, real_lo = std::min(real_lo, v), real_hi = std::max(real_hi, v);
+      refs.push_back(Json{{"name", r.name}, {"depth_structure", v}});
+      char b[160];
+      std::snprintf(b, sizeof b, "| %s (real) | %.2f |\n", r.name.c_str(), v);
+      md += b;
+    }
+    std::string layouts_line;
+    for (const auto& [layout, v] : structure_by_layout) {
+      double s = 0, n = 0;
+      for (double x : v)
+        if (std::isfinite(x)) s += x, n += 1;
+      if (n == 0) continue;
+      char b[160];
+      std::snprintf(b, sizeof b, "| %s (generated, mean of %d) | %.2f |\n", layout.c_str(), int(n), s / n);
+      md += b;
+      std::snprintf(b, sizeof b, "%s%s %.2f", layouts_line.empty() ? "" : ", ", layout.c_str(), s / n);
+      layouts_line += b;
+      rj["depth_structure_by_layout"][layout] = s / n;
+    }
+    rj["depth_structure_references"] = refs;
+    write_text_file(dir + "/realism.json", rj.dump(2) + "\n");
+    write_text_file(dir + "/realism.md", md);
+    log::info("realism of the generated scenes (" + dir + "/realism.md; reference: the CAVE balloons cube):\n" + md);
     for (const auto& line : check_realism(sum.mean)) log::info("realism: " + line);
+    char b[300];
+    std::snprintf(b, sizeof b, "realism: depth structure %s against real depth maps %.2f .. %.2f (mean %.2f)",
+                  layouts_line.c_str(), real_lo, real_hi, real_sum / double(maps.size()));
+    log::info(b);
   }
   Json record = generator_record(cfg);
   record["written_by"] = cache ? "training (data.generate_if_missing)" : "hsd_scenes";

@@ -12,6 +12,7 @@
 #include "common/config.h"
 #include "common/error.h"
 #include "data/dataset.h"
+#include "data/depth_structure.h"
 #include "data/synthetic_dataset.h"
 #include "helpers.h"
 #include "model/spectral_upsampling.h"
@@ -152,7 +153,7 @@ TEST_CASE("baselines: a network that outputs the baselines scores exactly the ba
   CHECK(j.contains("depth_effective_resolution_px"));
   const auto& sc0 = test_split[0].scene;
   const train::DepthErrors o15 =
-      train::depth_errors(train::box_oracle_depth_map(sc0.depth_m, sc0.mask, 15), sc0.depth_m, sc0.mask);
+      train::depth_errors(data::box_oracle_depth_map(sc0.depth_m, sc0.mask, 15), sc0.depth_m, sc0.mask);
   CHECK(r.scenes[0].oracle_depth_rmse_m[3] == Approx(o15.rmse_m).epsilon(1e-9));
 }
 
@@ -161,18 +162,18 @@ TEST_CASE("resolution oracle: box means of inverse depth over valid pixels, by h
   // 3 x 4 depth map: two columns at 0.5 m (1/z = 2), two at 2 m (1/z = 0.5).
   torch::Tensor z = torch::tensor({0.5, 0.5, 2.0, 2.0}, torch::kFloat64).repeat({3, 1}).unsqueeze(0);  // [1, 3, 4]
   torch::Tensor mask = torch::ones_like(z);
-  const torch::Tensor o = train::box_oracle_depth_map(z, mask, 3);
+  const torch::Tensor o = data::box_oracle_depth_map(z, mask, 3);
   CHECK(o[0][1][1].item<double>() == Approx(1.0 / 1.5));        // 6 pixels at 2 and 3 at 0.5: mean 1.5
   CHECK(o[0][0][0].item<double>() == Approx(0.5));              // the box clipped at the corner: all at 2
   CHECK(o[0][0][2].item<double>() == Approx(1.0));              // (2·2 + 4·0.5) / 6 = 1
   mask[0][1][2] = 0;                                            // an invalid pixel leaves the mean
-  CHECK(train::box_oracle_depth_map(z, mask, 3)[0][1][1].item<double>() == Approx(8.0 / 13.0));  // (6·2 + 2·0.5) / 8
+  CHECK(data::box_oracle_depth_map(z, mask, 3)[0][1][1].item<double>() == Approx(8.0 / 13.0));  // (6·2 + 2·0.5) / 8
   // w = 1 is the truth; a constant depth is its own oracle at every window.
-  CHECK(torch::equal(train::box_oracle_depth_map(z, torch::ones_like(z), 1), z));
+  CHECK(torch::equal(data::box_oracle_depth_map(z, torch::ones_like(z), 1), z));
   const torch::Tensor flat = torch::full({1, 6, 7}, 1.3, torch::kFloat64);
-  CHECK(torch::allclose(train::box_oracle_depth_map(flat, torch::ones_like(flat), 5), flat));
-  CHECK_THROWS_AS(train::box_oracle_depth_map(z, mask, 4), InputError);
-  CHECK_THROWS_AS(train::box_oracle_depth_map(z, mask.squeeze(0), 3), InputError);
+  CHECK(torch::allclose(data::box_oracle_depth_map(flat, torch::ones_like(flat), 5), flat));
+  CHECK_THROWS_AS(data::box_oracle_depth_map(z, mask, 4), InputError);
+  CHECK_THROWS_AS(data::box_oracle_depth_map(z, mask.squeeze(0), 3), InputError);
   // Effective resolution: linear in log w between the bracketing windows.
   const std::vector<int64_t> w{3, 9, 27};
   const std::vector<double> r{0.1, 0.2, 0.4};

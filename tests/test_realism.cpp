@@ -16,6 +16,7 @@
 #include "common/config.h"
 #include "common/error.h"
 #include "data/synthetic_dataset.h"
+#include "data/depth_structure.h"
 #include "data/mat_file.h"
 #include "data/measured_reflectances.h"
 #include "data/real_test_set.h"
@@ -319,4 +320,57 @@ TEST_CASE("realism: the default generator meets the targets on configs/paper.jso
   CHECK(m["psd_slope"].get<double>() <= -1.7);
   CHECK(m["rgb_unexplained"].get<double>() >= 0.07);
   for (const auto& q : m["inv_depth_quarters"]) CHECK(q.get<double>() >= 0.15);
+}
+
+TEST_CASE("depth structure: the resolution oracle's RMSE over the median constant's, against a loop by hand, and the real maps",
+          "[realism][depth]") {
+  // A 40 x 50 map: 0.5 m left of column 20, 2 m right of it, one invalid pixel; fraction 0.2 -> a 7-px box.
+  const int64_t H = 40, W = 50;
+  torch::Tensor z = torch::full({H, W}, 2.0, torch::kFloat64);
+  z.narrow(1, 0, 20).fill_(0.5);
+  torch::Tensor mask = torch::ones({H, W}, torch::kFloat64);
+  mask[10][19] = 0;
+  CHECK(data::structure_window_px(H, W) == 7);
+  CHECK(data::structure_window_px(144, 192) == 29);
+  // By hand: the box mean of valid inverse depths (clipped at the borders), the lower median, RMSEs in metres.
+  const auto zp = z.accessor<double, 2>();
+  const auto mp = mask.accessor<double, 2>();
+  std::vector<double> inv;
+  for (int64_t y = 0; y < H; ++y)
+    for (int64_t x = 0; x < W; ++x)
+      if (mp[y][x] > 0.5) inv.push_back(1.0 / zp[y][x]);
+  std::sort(inv.begin(), inv.end());
+  const double med = inv[(inv.size() - 1) / 2];
+  double se_o = 0, se_c = 0;
+  for (int64_t y = 0; y < H; ++y)
+    for (int64_t x = 0; x < W; ++x) {
+      if (mp[y][x] < 0.5) continue;
+      double s = 0, n = 0;
+      for (int64_t v = std::max<int64_t>(0, y - 3); v <= std::min(H - 1, y + 3); ++v)
+        for (int64_t u = std::max<int64_t>(0, x - 3); u <= std::min(W - 1, x + 3); ++u)
+          if (mp[v][u] > 0.5) s += 1.0 / zp[v][u], n += 1;
+      se_o += std::pow(n / s - zp[y][x], 2);
+      se_c += std::pow(1.0 / med - zp[y][x], 2);
+    }
+  CHECK(data::depth_structure(z, mask) == Approx(std::sqrt(se_o / se_c)).epsilon(1e-9));
+  // Smooth at the box's scale: a linear ramp in inverse depth is its own box mean away from the borders.
+  const torch::Tensor ramp = 1.0 / torch::linspace(0.5, 2.5, W, torch::kFloat64).expand({H, W});
+  CHECK(data::depth_structure(ramp, torch::ones({H, W}), 0.2) < 0.1);
+  CHECK(std::isnan(data::depth_structure(torch::full({H, W}, 1.0), torch::ones({H, W}))));  // a constant is exact
+  CHECK_THROWS_AS(data::structure_window_px(H, W, 0.0), InputError);
+
+  // The real maps load at the requested size, mostly measured, inside the depth range.
+  const auto maps = data::reference_depth_maps(144, 192, 0.4, 2.0);
+  REQUIRE(maps.size() == 4);
+  for (const auto& r : maps) {
+    INFO(r.name);
+    CHECK(r.depth_m.sizes() == torch::IntArrayRef({1, 144, 192}));
+    CHECK(r.mask.mean().item<double>() > 0.6);
+    const torch::Tensor d = r.depth_m.masked_select(r.mask > 0.5);
+    CHECK(d.min().item<double>() >= 0.4 - 1e-4);
+    CHECK(d.max().item<double>() <= 2.0 + 1e-4);
+    const double s = data::depth_structure(r.depth_m, r.mask);
+    CHECK(s > 0.0);
+    CHECK(s < 1.0);
+  }
 }

@@ -27,26 +27,6 @@ torch::Tensor constant_depth_map(const torch::Tensor& like, double inv_depth_per
   return torch::full_like(like, 1.0 / inv_depth_per_m);
 }
 
-torch::Tensor box_oracle_depth_map(const torch::Tensor& depth_m, const torch::Tensor& mask, int64_t window_px) {
-  if (window_px < 1 || window_px % 2 == 0) throw InputError("resolution oracle: the window must be odd and >= 1");
-  if (depth_m.dim() < 2 || !mask.sizes().equals(depth_m.sizes()))
-    throw InputError("resolution oracle: depth and mask must be [.., H, W] of the same shape, got " +
-                     c10::str(depth_m.sizes()) + " and " + c10::str(mask.sizes()));
-  const int64_t H = depth_m.size(-2), W = depth_m.size(-1), w = window_px;
-  const torch::Tensor z = depth_m.to(torch::kFloat64).reshape({-1, 1, H, W});
-  const torch::Tensor v = ((mask.reshape({-1, 1, H, W}) > 0.5) & torch::isfinite(z) & (z > 0)).to(torch::kFloat64);
-  const torch::Tensor inv = torch::where(v > 0, 1.0 / z, torch::zeros_like(z));
-  // Box sums as two 1-D sums (zero padding: the box is clipped at the borders).
-  namespace F = torch::nn::functional;
-  auto box = [&](const torch::Tensor& x) {
-    torch::Tensor y = F::avg_pool2d(x, F::AvgPool2dFuncOptions({w, 1}).stride(1).padding({w / 2, 0}).count_include_pad(true));
-    return F::avg_pool2d(y, F::AvgPool2dFuncOptions({1, w}).stride(1).padding({0, w / 2}).count_include_pad(true));
-  };
-  const torch::Tensor num = box(inv), den = box(v);
-  const torch::Tensor est = torch::where(den > 1e-12, den / num.clamp_min(1e-300), z);
-  return est.reshape(depth_m.sizes()).to(depth_m.scalar_type());
-}
-
 double effective_resolution_px(const std::vector<int64_t>& windows, const std::vector<double>& oracle_rmse, double rmse) {
   if (windows.empty() || windows.size() != oracle_rmse.size())
     throw InputError("effective resolution: windows and oracle RMSEs must be non-empty and of equal size");

@@ -7,11 +7,9 @@
 //     (model/spectral_upsampling.h), the network's residual input without the
 //     network: what the U-Net adds is the difference from it.
 // Beside them, a reference that uses the truth (not a baseline a model could
-// be, but a ruler for depth): the resolution oracle, the true inverse depth
-// averaged over a w × w box of valid pixels. It is what a depth sensor exact
-// at the scale of w pixels and blind below it would report; its RMSE against
-// w says how fine a scene's depth structure is, and the w at which it equals
-// a model's RMSE is that model's effective depth resolution.
+// be, but a ruler for depth): the resolution oracle (data/depth_structure.h);
+// the w at which its RMSE equals a model's is that model's effective depth
+// resolution.
 #pragma once
 #include <vector>
 
@@ -27,13 +25,6 @@ double median_inverse_depth(const std::vector<data::LoadedScene>& scenes);
 
 // The constant-depth map: depth_m [.., H, W] of `like`'s shape, every value 1 / inv_depth [m].
 torch::Tensor constant_depth_map(const torch::Tensor& like, double inv_depth_per_m);
-
-// The resolution oracle: depth_m [.., H, W] (metres), mask of the same shape
-// (> 0.5 = valid), window_px odd >= 1 -> depth [m] whose inverse is, at every
-// pixel, the mean inverse depth of the valid pixels in the w × w box around it
-// (the box clipped at the borders); pixels with no valid neighbour keep their
-// own depth. w = 1 returns the truth at valid pixels.
-torch::Tensor box_oracle_depth_map(const torch::Tensor& depth_m, const torch::Tensor& mask, int64_t window_px);
 
 // The window at which an oracle's RMSE equals `rmse`: windows ascending,
 // oracle_rmse their RMSEs; linear in log w between the bracketing pair.

@@ -12,6 +12,7 @@
 #include "common/error.h"
 #include "common/log.h"
 #include "data/dataset.h"
+#include "data/depth_structure.h"
 #include "data/image_io.h"
 #include "data/manifest.h"
 #include "data/preview.h"
@@ -116,7 +117,7 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
       m.baseline_constant_depth_rmse_m = dc.rmse_m, m.baseline_constant_depth_mae_m = dc.mae_m;
     }
     for (int64_t w : kOracleWindowsPx)
-      m.oracle_depth_rmse_m.push_back(depth_errors(box_oracle_depth_map(sc.depth_m, valid, w), sc.depth_m, valid).rmse_m);
+      m.oracle_depth_rmse_m.push_back(depth_errors(data::box_oracle_depth_map(sc.depth_m, valid, w), sc.depth_m, valid).rmse_m);
     const std::string stem = out_dir + "/" + std::filesystem::path(ls.file).stem().string();
     // Pictures: truth | reconstruction | |error| x4 | true depth | predicted depth.
     const torch::Tensor truth_rgb = data::spectral_to_linear_srgb(radiance, bands, bw);
