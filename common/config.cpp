@@ -196,6 +196,10 @@ DataConfig parse_data(const JsonReader& d) {
       gr->fail("dead_leaves_min_radius", "must be in (0, 1] (a fraction of the smaller image side)");
     if (!(g.dead_leaves_max_radius >= g.dead_leaves_min_radius && g.dead_leaves_max_radius <= 2.0))
       gr->fail("dead_leaves_max_radius", "must be in [dead_leaves_min_radius, 2]");
+    g.dead_leaves_surface_min_radius = gr->get_number("dead_leaves_surface_min_radius", g.dead_leaves_surface_min_radius);
+    if (!(g.dead_leaves_surface_min_radius == 0.0 ||
+          (g.dead_leaves_surface_min_radius >= g.dead_leaves_min_radius && g.dead_leaves_surface_min_radius <= g.dead_leaves_max_radius)))
+      gr->fail("dead_leaves_surface_min_radius", "must be 0 (off) or in [dead_leaves_min_radius, dead_leaves_max_radius]");
     g.spectral_exclusion = gr->get_number("spectral_exclusion", g.spectral_exclusion);
     if (!(g.spectral_exclusion >= 0.0 && g.spectral_exclusion <= 0.2))
       gr->fail("spectral_exclusion", "must be in [0, 0.2] (relative shape distance to a ColorChecker patch)");

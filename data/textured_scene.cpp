@@ -234,65 +234,98 @@ GeneratedScene generate_dead_leaves_scene(const GeneratorConfig& g, const SceneS
   struct Shape {
     double xc, yc, inv, gx, gy, theta, texel, ox, oy;
   };
-  std::vector<Shape> shapes;
-  std::vector<int32_t> id(size_t(H * W), -1);
-  // Per-pixel z-buffer of inverse depth: the nearest shape's plane wins, so a
-  // slanted later shape that comes nearer at an edge occludes correctly.
-  std::vector<double> best(size_t(H * W), -1.0);
   auto plane = [](const auto& s, double x, double y) { return s.inv + s.gx * (x - s.xc) + s.gy * (y - s.yc); };
-  int64_t covered = 0;
-  double inv_prev = inv_near;
-  while (double(covered) < c_stop * double(H * W) && int64_t(shapes.size()) < g.dead_leaves_max_shapes) {
-    const double cov = double(covered) / double(H * W);
-    // Inverse depth from the covered fraction (+ jitter), never nearer than an earlier (occluding) shape.
-    const double inv = std::min(inv_prev, inv_near - std::clamp(cov + uni(-0.03, 0.03), 0.0, 1.0) * range);
-    inv_prev = inv;
-    // Power-law radius p(r) ∝ r^-3 on [rmin, rmax] by inversion.
-    const double u = U(rng);
-    const double rr = 1.0 / std::sqrt(1.0 / (rmin * rmin) - u * (1.0 / (rmin * rmin) - 1.0 / (rmax * rmax)));
-    const double xc = uni(-0.1 * double(W), 1.1 * double(W)), yc = uni(-0.1 * double(H), 1.1 * double(H));
-    const int kind = std::uniform_int_distribution<int>(0, 2)(rng);
-    const double ar = uni(0.35, 1.0), rot = uni(0, M_PI);
-    // Slant: inverse depth changes by at most 8 % of the range across the shape's radius.
-    const double slope = uni(0.0, 0.08) * range / rr, dir = uni(0, 2 * M_PI);
-    Shape s{xc, yc, inv, slope * std::cos(dir), slope * std::sin(dir), uni(0, 2 * M_PI),
-            log_uniform(rng, g.texture_scale_min, g.texture_scale_max), uni(0, 4096), uni(0, 4096)};
-    const double cr = std::cos(rot), sr = std::sin(rot);
-    const int64_t x0 = std::max<int64_t>(0, int64_t(std::floor(xc - rr))), x1 = std::min<int64_t>(W - 1, int64_t(std::ceil(xc + rr)));
-    const int64_t y0 = std::max<int64_t>(0, int64_t(std::floor(yc - rr))), y1 = std::min<int64_t>(H - 1, int64_t(std::ceil(yc + rr)));
-    const int32_t k = int32_t(shapes.size());
-    for (int64_t y = y0; y <= y1; ++y)
-      for (int64_t x = x0; x <= x1; ++x) {
-        const size_t i = size_t(y * W + x);
-        const double dx = double(x) + 0.5 - xc, dy = double(y) + 0.5 - yc;
-        const double a = (cr * dx + sr * dy) / rr, b = (-sr * dx + cr * dy) / (rr * ar);
-        const bool inside = kind == 0 ? (dx * dx + dy * dy <= rr * rr)
-                          : kind == 1 ? (a * a + b * b <= 1.0)
-                                      : (std::abs(a) <= 0.8 && std::abs(b) <= 0.8);
-        if (!inside) continue;
-        const double v = std::clamp(plane(s, double(x) + 0.5, double(y) + 0.5), inv_far, inv_near);
-        if (id[i] < 0) ++covered;
-        if (v > best[i]) best[i] = v, id[i] = k;
+  // One occlusion process: shapes with radii ∝ r⁻³ on [r_lo, rmax] placed near to far until 90 % is
+  // covered, then a slanted background plane; id = the visible shape per pixel.
+  auto place = [&](double r_lo, std::vector<Shape>& shapes, std::vector<int32_t>& id) {
+    id.assign(size_t(H * W), -1);
+    // Per-pixel z-buffer of inverse depth: the nearest shape's plane wins, so a
+    // slanted later shape that comes nearer at an edge occludes correctly.
+    std::vector<double> best(size_t(H * W), -1.0);
+    int64_t covered = 0;
+    double inv_prev = inv_near;
+    while (double(covered) < c_stop * double(H * W) && int64_t(shapes.size()) < g.dead_leaves_max_shapes) {
+      const double cov = double(covered) / double(H * W);
+      // Inverse depth from the covered fraction (+ jitter), never nearer than an earlier (occluding) shape.
+      const double inv = std::min(inv_prev, inv_near - std::clamp(cov + uni(-0.03, 0.03), 0.0, 1.0) * range);
+      inv_prev = inv;
+      // Power-law radius p(r) ∝ r^-3 on [rmin, rmax] by inversion.
+      const double u = U(rng);
+      const double rr = 1.0 / std::sqrt(1.0 / (r_lo * r_lo) - u * (1.0 / (r_lo * r_lo) - 1.0 / (rmax * rmax)));
+      const double xc = uni(-0.1 * double(W), 1.1 * double(W)), yc = uni(-0.1 * double(H), 1.1 * double(H));
+      const int kind = std::uniform_int_distribution<int>(0, 2)(rng);
+      const double ar = uni(0.35, 1.0), rot = uni(0, M_PI);
+      // Slant: inverse depth changes by at most 8 % of the range across the shape's radius.
+      const double slope = uni(0.0, 0.08) * range / rr, dir = uni(0, 2 * M_PI);
+      Shape s{xc, yc, inv, slope * std::cos(dir), slope * std::sin(dir), uni(0, 2 * M_PI),
+              log_uniform(rng, g.texture_scale_min, g.texture_scale_max), uni(0, 4096), uni(0, 4096)};
+      const double cr = std::cos(rot), sr = std::sin(rot);
+      const int64_t x0 = std::max<int64_t>(0, int64_t(std::floor(xc - rr))), x1 = std::min<int64_t>(W - 1, int64_t(std::ceil(xc + rr)));
+      const int64_t y0 = std::max<int64_t>(0, int64_t(std::floor(yc - rr))), y1 = std::min<int64_t>(H - 1, int64_t(std::ceil(yc + rr)));
+      const int32_t k = int32_t(shapes.size());
+      for (int64_t y = y0; y <= y1; ++y)
+        for (int64_t x = x0; x <= x1; ++x) {
+          const size_t i = size_t(y * W + x);
+          const double dx = double(x) + 0.5 - xc, dy = double(y) + 0.5 - yc;
+          const double a = (cr * dx + sr * dy) / rr, b = (-sr * dx + cr * dy) / (rr * ar);
+          const bool inside = kind == 0 ? (dx * dx + dy * dy <= rr * rr)
+                            : kind == 1 ? (a * a + b * b <= 1.0)
+                                        : (std::abs(a) <= 0.8 && std::abs(b) <= 0.8);
+          if (!inside) continue;
+          const double v = std::clamp(plane(s, double(x) + 0.5, double(y) + 0.5), inv_far, inv_near);
+          if (id[i] < 0) ++covered;
+          if (v > best[i]) best[i] = v, id[i] = k;
+        }
+      shapes.push_back(s);
+    }
+    // Background: a slanted plane over the farthest (1 - covered) of the range.
+    {
+      const double cov = double(covered) / double(H * W);
+      const double inv_bg = std::min(inv_prev, inv_far + (1.0 - cov) * range);
+      const double dir = uni(0, 2 * M_PI), span = inv_bg - inv_far;
+      const double diag = std::sqrt(double(W * W + H * H));
+      shapes.push_back({0.5 * double(W), 0.5 * double(H), inv_far + 0.5 * span, span / diag * std::cos(dir),
+                        span / diag * std::sin(dir), uni(0, 2 * M_PI), log_uniform(rng, g.texture_scale_min, g.texture_scale_max),
+                        uni(0, 4096), uni(0, 4096)});
+      const int32_t k = int32_t(shapes.size() - 1);
+      const Shape& bg = shapes.back();
+      for (int64_t y = 0; y < H; ++y)
+        for (int64_t x = 0; x < W; ++x) {  // the background too takes part in the z-buffer
+          const size_t i = size_t(y * W + x);
+          const double v = std::clamp(plane(bg, double(x) + 0.5, double(y) + 0.5), inv_far, inv_near);
+          if (id[i] < 0 || v > best[i]) best[i] = v, id[i] = k;
+        }
+    }
+  };
+  std::vector<Shape> shapes;
+  std::vector<int32_t> id;
+  place(rmin, shapes, id);
+  // Optionally, larger surfaces carry the depth and the leaves are markings on them.
+  std::vector<Shape> surfaces;
+  std::vector<int32_t> sid;
+  const bool on_surfaces = g.dead_leaves_surface_min_radius > 0;
+  if (on_surfaces) {
+    place(std::max(rmin, g.dead_leaves_surface_min_radius * double(std::min(H, W))), surfaces, sid);
+    // Each visible (leaf, surface) pair is one painted patch: a leaf crossing a surface edge changes there,
+    // as paint ends where an object ends. Its texture geometry is the leaf's, its depth plane the surface's.
+    std::map<std::pair<int32_t, int32_t>, int32_t> pair_id;
+    std::vector<Shape> patches;
+    std::vector<int32_t> pid(size_t(H * W));
+    for (size_t i = 0; i < pid.size(); ++i) {
+      const auto key = std::make_pair(id[i], sid[i]);
+      auto it = pair_id.find(key);
+      if (it == pair_id.end()) {
+        Shape p = shapes[size_t(id[i])];
+        const Shape& q = surfaces[size_t(sid[i])];
+        p.ox += q.ox, p.oy += q.oy;  // another part of the photo on another surface
+        p.inv = plane(q, p.xc, p.yc), p.gx = q.gx, p.gy = q.gy;
+        it = pair_id.emplace(key, int32_t(patches.size())).first;
+        patches.push_back(p);
       }
-    shapes.push_back(s);
-  }
-  // Background: a slanted plane over the farthest (1 - covered) of the range.
-  {
-    const double cov = double(covered) / double(H * W);
-    const double inv_bg = std::min(inv_prev, inv_far + (1.0 - cov) * range);
-    const double dir = uni(0, 2 * M_PI), span = inv_bg - inv_far;
-    const double diag = std::sqrt(double(W * W + H * H));
-    shapes.push_back({0.5 * double(W), 0.5 * double(H), inv_far + 0.5 * span, span / diag * std::cos(dir),
-                      span / diag * std::sin(dir), uni(0, 2 * M_PI), log_uniform(rng, g.texture_scale_min, g.texture_scale_max),
-                      uni(0, 4096), uni(0, 4096)});
-    const int32_t k = int32_t(shapes.size() - 1);
-    const Shape& bg = shapes.back();
-    for (int64_t y = 0; y < H; ++y)
-      for (int64_t x = 0; x < W; ++x) {  // the background too takes part in the z-buffer
-        const size_t i = size_t(y * W + x);
-        const double v = std::clamp(plane(bg, double(x) + 0.5, double(y) + 0.5), inv_far, inv_near);
-        if (id[i] < 0 || v > best[i]) best[i] = v, id[i] = k;
-      }
+      pid[i] = it->second;
+    }
+    shapes = std::move(patches);
+    id = std::move(pid);
   }
   const int64_t n = int64_t(shapes.size());
   const size_t ns = size_t(n);
@@ -323,7 +356,10 @@ GeneratedScene generate_dead_leaves_scene(const GeneratorConfig& g, const SceneS
   const torch::Tensor refl = paint(m, looks, src.textures, noise, materials, L);
   const torch::Tensor valid = torch::ones({H, W}, torch::kBool);
   return finish(refl, 1.0 / invz, valid, wavelengths_m,
-                "dead leaves: " + std::to_string(n - 1) + " occluding textured shapes and a slanted background");
+                on_surfaces ? "dead leaves: " + std::to_string(surfaces.size() - 1) +
+                                  " occluding surfaces and a slanted background, painted with " +
+                                  std::to_string(n) + " leaf patches"
+                            : "dead leaves: " + std::to_string(n - 1) + " occluding textured shapes and a slanted background");
 }
 
 }  // namespace hsd::data

@@ -262,6 +262,47 @@ TEST_CASE("realistic layouts: deterministic, in range, textured, depth spread in
                            data::generate_dead_leaves_scene(g, src, w, 2).scene.depth_m));
 }
 
+TEST_CASE("dead leaves on surfaces: the leaves become markings, depth comes from larger surfaces and is as coarse as real depth maps",
+          "[data][realism][depth]") {
+  const auto w = bands(430, 640, 30);
+  const data::MeasuredReflectances m(w, 30e-9);
+  const data::TextureBank bank(data::TextureBank::default_dir());
+  const data::SceneSources src{m, bank};
+  GeneratorConfig g;
+  g.width_px = 192, g.height_px = 144, g.depth_min_m = 0.4, g.depth_max_m = 2.0;
+  g.dead_leaves_surface_min_radius = 0.0;  // every leaf its own depth
+  GeneratorConfig gs = g;
+  gs.dead_leaves_surface_min_radius = 0.2;  // the default
+  data::RealismSpec spec{w, 30e-9, "canon_5d_mark_iii", 0.4, 2.0, 8};
+  std::vector<data::SceneRealism> leaves, surfaces;
+  for (uint64_t seed : {1u, 2u, 3u, 4u}) {
+    const data::GeneratedScene a = data::generate_dead_leaves_scene(g, src, w, seed);
+    const data::GeneratedScene b = data::generate_dead_leaves_scene(gs, src, w, seed);
+    CHECK(torch::equal(b.scene.depth_m, data::generate_dead_leaves_scene(gs, src, w, seed).scene.depth_m));
+    CHECK(b.scene.depth_m.min().item<float>() >= 0.4f - 1e-5f);
+    CHECK(b.scene.depth_m.max().item<float>() <= 2.0f + 1e-5f);
+    CHECK(b.scene.spectral.max().item<float>() <= 1.0f);
+    // Fewer distinct depths than painted patches: count depth steps and colour steps between horizontal neighbours.
+    const torch::Tensor dz = (b.scene.depth_m.narrow(2, 1, 191) - b.scene.depth_m.narrow(2, 0, 191)).abs() > 0.02;
+    const torch::Tensor az = (a.scene.depth_m.narrow(2, 1, 191) - a.scene.depth_m.narrow(2, 0, 191)).abs() > 0.02;
+    CHECK(dz.sum().item<int64_t>() < az.sum().item<int64_t>() / 2);
+    leaves.push_back(data::measure_realism(a.scene, spec, "leaves"));
+    surfaces.push_back(data::measure_realism(b.scene, spec, "surfaces"));
+  }
+  const auto L = data::summarise_realism(leaves).mean, S = data::summarise_realism(surfaces).mean;
+  // Coarser depth, within the real maps' range at this size (0.31 .. 0.77); the images keep their statistics.
+  CHECK(S.depth_structure < L.depth_structure - 0.1);
+  CHECK(S.depth_structure < 0.7);
+  CHECK(S.textured_fraction > 0.95);
+  CHECK(S.psd_slope > -2.3);
+  CHECK(S.psd_slope < -1.7);
+  for (double q : S.inv_depth_quarters) CHECK(q > 0.1);
+  // On (0.2) by default; a bad value is refused by the config.
+  CHECK(GeneratorConfig{}.dead_leaves_surface_min_radius == 0.2);
+  CHECK_THROWS_AS(load_config(test::source_path("configs/tiny.json"), {"data.generator.dead_leaves_surface_min_radius=0.9"}),
+                  InputError);
+}
+
 TEST_CASE("layouts: weights pick layouts, and classic alone reproduces the earlier generator", "[data][realism]") {
   GeneratorConfig g;
   g.layouts = {{"classic_tabletop", 1.0}};
