@@ -36,6 +36,13 @@
 //                 follows the covered fraction c: 1/z = 1/near − c·(1/near −
 //                 1/far), so the visible pixels are spread evenly in inverse
 //                 depth; a slanted textured background fills the last 10 %.
+//                 With dead_leaves_surface_min_radius > 0 (the default 0.2)
+//                 there are two such processes: surfaces (radii from that
+//                 fraction) carry the depth planes, leaves (radii from
+//                 dead_leaves_min_radius) the paint, one look per visible
+//                 (leaf, surface) pair, so paint changes at every depth edge
+//                 but most colour edges are not depth edges, as in real
+//                 scenes (depth structure, data/depth_structure.h).
 // Deterministic for a seed.
 #pragma once
 #include <cstdint>
