@@ -227,14 +227,26 @@ TEST_CASE("texture bank: the shipped photographs load as linear RGB, and bad fol
   }
 }
 
-TEST_CASE("realistic layouts: deterministic, in range, textured, depth spread in inverse depth", "[data][realism]") {
-  const auto w = bands(430, 640, 30);
-  const data::MeasuredReflectances m(w, 30e-9);
-  const data::TextureBank bank(data::TextureBank::default_dir());
+// The realistic layouts' sources on 8 bands, a 192 × 144 generator over 0.4-2 m, and the realism spec.
+struct LayoutBench {
+  const std::vector<double> w = bands(430, 640, 30);
+  const data::MeasuredReflectances m{w, 30e-9};
+  const data::TextureBank bank{data::TextureBank::default_dir()};
   const data::SceneSources src{m, bank};
-  GeneratorConfig g;
-  g.width_px = 192, g.height_px = 144, g.depth_min_m = 0.4, g.depth_max_m = 2.0;
-  data::RealismSpec spec{w, 30e-9, "canon_5d_mark_iii", 0.4, 2.0, 8};
+  GeneratorConfig g = [] {
+    GeneratorConfig c;
+    c.width_px = 192, c.height_px = 144, c.depth_min_m = 0.4, c.depth_max_m = 2.0;
+    return c;
+  }();
+  const data::RealismSpec spec{w, 30e-9, "canon_5d_mark_iii", 0.4, 2.0, 8};
+};
+
+TEST_CASE("realistic layouts: deterministic, in range, textured, depth spread in inverse depth", "[data][realism]") {
+  const LayoutBench b;
+  const auto& w = b.w;
+  const auto& src = b.src;
+  const GeneratorConfig& g = b.g;
+  const data::RealismSpec& spec = b.spec;
   std::vector<data::SceneRealism> leaves;
   for (uint64_t seed : {1u, 2u, 3u, 4u}) {
     const data::GeneratedScene a = data::generate_dead_leaves_scene(g, src, w, seed);
@@ -264,16 +276,14 @@ TEST_CASE("realistic layouts: deterministic, in range, textured, depth spread in
 
 TEST_CASE("dead leaves on surfaces: the leaves become markings, depth comes from larger surfaces and is as coarse as real depth maps",
           "[data][realism][depth]") {
-  const auto w = bands(430, 640, 30);
-  const data::MeasuredReflectances m(w, 30e-9);
-  const data::TextureBank bank(data::TextureBank::default_dir());
-  const data::SceneSources src{m, bank};
-  GeneratorConfig g;
-  g.width_px = 192, g.height_px = 144, g.depth_min_m = 0.4, g.depth_max_m = 2.0;
+  const LayoutBench bench;
+  const auto& w = bench.w;
+  const auto& src = bench.src;
+  const data::RealismSpec& spec = bench.spec;
+  GeneratorConfig g = bench.g;
   g.dead_leaves_surface_min_radius = 0.0;  // every leaf its own depth
   GeneratorConfig gs = g;
   gs.dead_leaves_surface_min_radius = 0.2;  // the default
-  data::RealismSpec spec{w, 30e-9, "canon_5d_mark_iii", 0.4, 2.0, 8};
   std::vector<data::SceneRealism> leaves, surfaces;
   for (uint64_t seed : {1u, 2u, 3u, 4u}) {
     const data::GeneratedScene a = data::generate_dead_leaves_scene(g, src, w, seed);
