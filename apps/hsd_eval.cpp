@@ -91,12 +91,10 @@ int run(const AppArgs& args) {
     log::info(buf);
   }
   if (!std::isnan(a.depth_effective_resolution_px)) {
-    const double w = a.depth_effective_resolution_px;
     std::snprintf(buf, sizeof buf,
-                  "the depth RMSE equals that of the true depth averaged over a %s box (the resolution oracle, "
+                  "the depth RMSE equals that of the true depth averaged over a box of %s (the resolution oracle, "
                   "report.md): depth structure finer than that is not recovered",
-                  std::isfinite(w) ? (std::to_string(int(std::lround(w))) + "-px").c_str()
-                                   : ("more than " + std::to_string(train::kOracleWindowsPx.back()) + "-px").c_str());
+                  train::effective_resolution_text(a.depth_effective_resolution_px).c_str());
     log::info(buf);
   }
   log::info("wrote " + args.out_dir + "/metrics.json, report.md and pictures");

@@ -86,26 +86,23 @@ std::vector<ReferenceDepthMap> reference_depth_maps(int64_t H, int64_t W, double
   if (H < 8 || W < 8 || !(near_m > 0 && far_m > near_m)) throw InputError("reference depth maps: bad size or range");
   const std::string dir = optics::data_dir() + "/real/";
   std::vector<ReferenceDepthMap> out;
-  {  // TUM: depth [m] = v / 5000
-    const cv::Mat t = read_image(dir + "rgbd_samples/TUM_depth.png", cv::IMREAD_ANYDEPTH, "reference depth map");
-    if (t.type() != CV_16U) throw InputError(dir + "rgbd_samples/TUM_depth.png: expected 16-bit grey");
+  // A 16-bit depth PNG -> inverse depth [1/m] (0 = unknown), depth_m(v) decoding a sample (<= 0: unknown).
+  auto png16 = [&](const std::string& file, auto depth_m) {
+    const cv::Mat t = read_image(dir + file, cv::IMREAD_ANYDEPTH, "reference depth map");
+    if (t.type() != CV_16U) throw InputError(dir + file + ": expected 16-bit grey");
     cv::Mat inv(t.size(), CV_32F, cv::Scalar(0));
     for (int i = 0; i < t.rows; ++i)
       for (int j = 0; j < t.cols; ++j)
-        if (const unsigned v = t.at<uint16_t>(i, j); v > 0) inv.at<float>(i, j) = 5000.0f / float(v);
-    out.push_back(to_reference("TUM RGB-D (office desk)", inv, H, W, near_m, far_m));
-  }
-  {  // SUN RGB-D: depth [mm] = 3-bit circular shift of v
-    const cv::Mat t = read_image(dir + "rgbd_samples/SUN_depth.png", cv::IMREAD_ANYDEPTH, "reference depth map");
-    if (t.type() != CV_16U) throw InputError(dir + "rgbd_samples/SUN_depth.png: expected 16-bit grey");
-    cv::Mat inv(t.size(), CV_32F, cv::Scalar(0));
-    for (int i = 0; i < t.rows; ++i)
-      for (int j = 0; j < t.cols; ++j) {
-        const unsigned v = t.at<uint16_t>(i, j), mm = ((v >> 3) | (v << 13)) & 0xFFFFu;
-        if (mm > 0) inv.at<float>(i, j) = 1000.0f / float(mm);
-      }
-    out.push_back(to_reference("SUN RGB-D (office corridor)", inv, H, W, near_m, far_m));
-  }
+        if (const float z = depth_m(unsigned(t.at<uint16_t>(i, j))); z > 0) inv.at<float>(i, j) = 1.0f / z;
+    return inv;
+  };
+  // TUM: depth [m] = v / 5000. SUN RGB-D: depth [mm] = the 3-bit circular shift of v.
+  out.push_back(to_reference("TUM RGB-D (office desk)", png16("rgbd_samples/TUM_depth.png", [](unsigned v) { return float(v) / 5000.0f; }),
+                             H, W, near_m, far_m));
+  out.push_back(to_reference("SUN RGB-D (office corridor)",
+                             png16("rgbd_samples/SUN_depth.png",
+                                   [](unsigned v) { return float(((v >> 3) | (v << 13)) & 0xFFFFu) / 1000.0f; }),
+                             H, W, near_m, far_m));
   {  // NYU v2 raw Kinect disparity, little-endian after a 17-byte header; 1/depth = (1092.5 - raw) / 351.3
     const std::string path = dir + "rgbd_samples/NYU_depth.pgm";
     std::ifstream f(path, std::ios::binary);

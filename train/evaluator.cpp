@@ -45,6 +45,11 @@ std::vector<std::array<int64_t, 4>> read_boxes(const std::string& path, std::vec
 
 }  // namespace
 
+std::string effective_resolution_text(double px) {
+  return std::isfinite(px) ? std::to_string(std::lround(px)) + " px"
+                           : "more than " + std::to_string(kOracleWindowsPx.back()) + " px";
+}
+
 EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& split, const std::string& out_dir) {
   trainer.net()->eval();
   trainer.refresh_preinverse();
@@ -268,10 +273,7 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
   std::snprintf(buf, sizeof buf,
                 "\n\nThe model's depth RMSE (%.4f m) equals the oracle's at w = %s: depth structure finer than that is "
                 "not recovered.\n",
-                a.depth_rmse_m,
-                std::isfinite(a.depth_effective_resolution_px)
-                    ? (c10::str(int(std::lround(a.depth_effective_resolution_px))) + " px").c_str()
-                    : ("more than " + std::to_string(kOracleWindowsPx.back()) + " px").c_str());
+                a.depth_rmse_m, effective_resolution_text(a.depth_effective_resolution_px).c_str());
   md += buf;
   md += "\nPictures: `<scene>_compare.png` (truth | reconstruction | |error| x4 | true depth | predicted depth), "
         "`<scene>_spectra.png`, `colorchecker_spectra.png`, `psf_atlas.png`.\n";

@@ -34,6 +34,8 @@ struct SceneMetrics {
 
 // The resolution oracle's windows [px] in every evaluation.
 inline const std::vector<int64_t> kOracleWindowsPx{3, 5, 9, 15, 31, 63, 127};
+// An effective resolution as text: "52 px", or "more than 127 px" when coarser than every window.
+std::string effective_resolution_text(double px);
 
 struct EvalResult {
   std::vector<SceneMetrics> scenes;
