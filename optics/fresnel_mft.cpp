@@ -2,6 +2,7 @@
 
 #include <cmath>
 
+#include <ATen/CPUGeneratorImpl.h>
 #include <ATen/Parallel.h>
 #include <torch/torch.h>
 
@@ -210,6 +211,32 @@ struct MftIntensityLowRank : public torch::autograd::Function<MftIntensityLowRan
   }
 };
 
+struct MftIntensityDepthBasis : public torch::autograd::Function<MftIntensityDepthBasis> {
+  static torch::Tensor forward(torch::autograd::AutogradContext* ctx, torch::Tensor field, torch::Tensor left,
+                               torch::Tensor basis) {
+    const int64_t Z = left.size(0), M = left.size(1), R = left.size(2);
+    const torch::Tensor y = torch::mm(torch::mm(basis, field), basis.t());         // B M Bᵀ [R, R]
+    const torch::Tensor g = torch::mm(left.reshape({Z * M, R}), y).view({Z, M, R});  // L_z Y
+    const torch::Tensor F = torch::bmm(g, left.transpose(1, 2));                   // [Z, M, M]
+    ctx->save_for_backward({F, left, basis});
+    return intensity(F);
+  }
+  static torch::autograd::variable_list backward(torch::autograd::AutogradContext* ctx,
+                                                 torch::autograd::variable_list grads) {
+    const auto saved = ctx->get_saved_variables();
+    const torch::Tensor &F = saved[0], &left = saved[1], &basis = saved[2];
+    const int64_t Z = left.size(0), M = left.size(1), R = left.size(2);
+    const torch::Tensor gF = 2.0 * grads[0] * F;  // I = re² + im²
+    // F_z = L_z Y L_zᵀ -> dY = Σ_z L_zᴴ dF_z conj(L_z);  Y = T Bᵀ -> dT = dY conj(B);  T = B M -> dM = Bᴴ dT
+    const torch::Tensor lc = left.conj().resolve_conj();
+    const torch::Tensor t1 = torch::bmm(gF, lc);                                           // [Z, M, R]
+    const torch::Tensor gY = torch::mm(lc.reshape({Z * M, R}).t(), t1.reshape({Z * M, R}));  // [R, R]
+    const torch::Tensor bc = basis.conj().resolve_conj();
+    const torch::Tensor gM = torch::mm(bc.t(), torch::mm(gY, bc));                        // [N, N]
+    return {gM, torch::Tensor(), torch::Tensor()};
+  }
+};
+
 }  // namespace
 
 LowRankKernel factor_tilt_kernel(const torch::Tensor& tilt, double rel_tol, c10::ScalarType complex_dtype) {
@@ -237,6 +264,52 @@ LowRankKernel factor_tilt_kernel(const torch::Tensor& tilt, double rel_tol, c10:
                 .to(complex_dtype)
                 .contiguous();
   return k;
+}
+
+DepthBasis factor_depth_kernels(const torch::Tensor& kernels, double rel_tol, c10::ScalarType complex_dtype) {
+  const int64_t Z = kernels.size(0), M = kernels.size(1), N = kernels.size(2);
+  const torch::Tensor X = kernels.to(torch::kComplexDouble).reshape({Z * M, N});
+  // The dominant right singular vectors of X are the dominant eigenvectors of
+  // the Hermitian Gram matrix XᴴX [N, N] (float64: the cut rel_tol ≥ 1e-7
+  // keeps σ² above its rounding, as in factor_tilt_kernel). The stack's rank
+  // is far below N, so its leading eigenvectors come from a randomised range
+  // finder (Halko, Martinsson & Tropp, SIAM Rev. 53, 217 (2011)) on p columns
+  // and a Rayleigh-Ritz step, p doubled until the cut falls 8 columns inside
+  // them; p = N is the full eigendecomposition. No power iteration: XᴴX
+  // already squares the singular values, and its square would push those at
+  // the cut (σ⁴ ~ 1e-16 σ_max⁴ at rel_tol 1e-4) below float64's rounding. The random test matrix comes from a fixed
+  // private generator: the factors are deterministic and torch's global
+  // generator is not touched.
+  const torch::Tensor gram = torch::mm(X.conj().t(), X);
+  auto gen = at::make_generator<at::CPUGeneratorImpl>(/*seed=*/20211011);
+  int64_t p = std::min<int64_t>(N, std::max<int64_t>(16, M / 2));
+  torch::Tensor S, V;  // singular values (descending) and right singular vectors [N, p]
+  int64_t r = 0;
+  for (;;) {
+    torch::Tensor Q;
+    if (p >= N) {
+      Q = torch::eye(N, X.options());
+    } else {
+      const torch::Tensor omega = torch::randn({N, p}, gen, torch::TensorOptions().dtype(torch::kComplexDouble)).to(X.device());
+      Q = std::get<0>(torch::linalg_qr(torch::mm(gram, omega)));  // [N, p], orthonormal columns
+    }
+    const auto eig = torch::linalg_eigh(torch::mm(Q.conj().t(), torch::mm(gram, Q)));  // ascending
+    S = std::get<0>(eig).flip(0).clamp_min(0.0).sqrt();
+    V = torch::mm(Q, std::get<1>(eig).flip(1));
+    const double smax = S[0].item<double>();
+    r = std::max<int64_t>(1, (S > rel_tol * smax).sum().item<int64_t>());
+    if (p >= N || r + 8 <= p) break;  // the cut lies inside the captured subspace, with a margin
+    p = std::min<int64_t>(N, 2 * p);
+  }
+  const torch::Tensor Vr = V.narrow(1, 0, r);  // [N, R]
+  DepthBasis out;
+  out.basis = Vr.conj().t().to(complex_dtype).contiguous();                     // B = V_Rᴴ
+  out.left = torch::mm(X, Vr).view({Z, M, r}).to(complex_dtype).contiguous();  // L = X V_R
+  return out;
+}
+
+torch::Tensor mft_intensity_depth_basis(const DepthBasis& kernel, const torch::Tensor& pupil_field) {
+  return MftIntensityDepthBasis::apply(pupil_field, kernel.left, kernel.basis);
 }
 
 torch::Tensor mft_intensity_low_rank(const LowRankKernel& kernel, const torch::Tensor& chirps,

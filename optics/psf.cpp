@@ -91,6 +91,31 @@ PsfSimulator::PsfSimulator(PsfSpec spec) : spec_(std::move(spec)) {
   kernels_ = std::make_shared<KernelCache>(L * K);
 }
 
+namespace {
+
+// The pupil factors of one wavelength's kernels for each depth: the defocus
+// chirp with its cell integration (fresnel_mft.h). [Z, 2, N] with the cross
+// term (sinc(A) on the main term, −sinc'(A) on the cross term), else [Z, N].
+torch::Tensor depth_chirps(const torch::Tensor& pupil_x, double wavelength_m, const std::vector<double>& depths_m,
+                           double sensor_distance_m, double cell_m, bool cell_sinc, bool cross, c10::ScalarType cdt) {
+  const auto real = c10::toRealValueType(cdt);
+  std::vector<torch::Tensor> chirps;
+  for (double z : depths_m) {
+    const torch::Tensor c = compute_defocus_chirp(pupil_x, wavelength_m, z, sensor_distance_m, cdt);
+    const double k = 2.0 * M_PI / wavelength_m, curvature = 1.0 / z + 1.0 / sensor_distance_m;
+    const torch::Tensor slope = pupil_x * (k * curvature);  // the chirp's slope across each cell
+    if (cross) {
+      chirps.push_back(torch::stack({c * cell_average_factor(slope, cell_m).to(real),
+                                     c * cell_cross_factor(slope, cell_m).to(real)}));
+    } else {
+      chirps.push_back(cell_sinc ? c * cell_average_factor(slope, cell_m).to(real) : c);
+    }
+  }
+  return torch::stack(chirps);
+}
+
+}  // namespace
+
 // Node j's kernels, built on first use (once, whichever thread asks first): a
 // scene or a batch that leaves out bands never pays for their factorisations.
 const PsfSimulator::NodeKernel& PsfSimulator::kernel(size_t j) const {
@@ -125,6 +150,18 @@ PsfSimulator::NodeKernel PsfSimulator::build_kernel(size_t j) const {
       const torch::Tensor left = cross ? torch::cat({rows(k.left, row0), rows(k.left, row1)}, 1) : rows(k.left, row0);
       out.left = left.to(cdt).contiguous();
       out.right = k.right.to(cdt).contiguous();
+      if (s.depth_basis) {
+        // K_z = Σ_g left_g (right ⊙ chirp_z,g) for every configured depth, in complex128.
+        const torch::Tensor c = depth_chirps(pupil_x_, node_wavelength_m_[j], s.depths_m, s.sensor_distance_m,
+                                             s.pupil_pitch_m(), cell_sinc, cross, torch::kComplexDouble);
+        // W_z = [right ⊙ chirp_z,g]_g as [G·r, Z·N]; then all K_z = left · W_z in one product.
+        const torch::Tensor cz = cross ? c : c.unsqueeze(1);                                  // [Z, G, N]
+        const int64_t Z = cz.size(0), G = cz.size(1), r = k.right.size(0), N = k.right.size(1);
+        const torch::Tensor W = (k.right.view({1, 1, r, N}) * cz.unsqueeze(2)).permute({1, 2, 0, 3}).reshape({G * r, Z * N});
+        const torch::Tensor kz = torch::mm(left, W).view({left.size(0), Z, N}).permute({1, 0, 2});  // [Z, M, N]
+        const DepthBasis d = factor_depth_kernels(kz, s.mft_rank_tol, cdt);
+        out.depth_left = d.left, out.depth_basis = d.basis;
+      }
     } else {
       out.tilt = (cross ? torch::stack({rows(tilt64, row0), rows(tilt64, row1)}) : rows(tilt64, row0)).to(cdt);
     }
@@ -141,6 +178,7 @@ namespace {
 // still being alive.
 struct BandContext {
   torch::Tensor aperture, tilt, left, right, weights, pupil_x;  // left/right undefined: exact MFT
+  torch::Tensor depth_left, depth_basis;  // the joint depth basis (undefined: per depth); depth_left holds the requested depths
   double wavelength_m = 0, refractive_index = 0, sensor_distance_m = 0, pixel_pitch_m = 0, doe_pitch_m = 0,
          aperture_energy = 0;
   int64_t psf_size = 0, nodes = 0;
@@ -156,6 +194,8 @@ struct BandContext {
     d["left"] = left;
     d["right"] = right;
     d["weights"] = weights;
+    d["depth_left"] = depth_left;
+    d["depth_basis"] = depth_basis;
     d["pupil_x"] = pupil_x;
     d["scalars"] = c10::List<double>({wavelength_m, refractive_index, sensor_distance_m, pixel_pitch_m, doe_pitch_m,
                                       aperture_energy});
@@ -170,6 +210,8 @@ struct BandContext {
     if (d["left"].isTensor()) b.left = d["left"].toTensor();
     if (d["right"].isTensor()) b.right = d["right"].toTensor();
     b.weights = d["weights"].toTensor();
+    if (d["depth_left"].isTensor()) b.depth_left = d["depth_left"].toTensor();
+    if (d["depth_basis"].isTensor()) b.depth_basis = d["depth_basis"].toTensor();
     b.pupil_x = d["pupil_x"].toTensor();
     const auto sc = d["scalars"].toDoubleVector();
     b.wavelength_m = sc[0], b.refractive_index = sc[1], b.sensor_distance_m = sc[2], b.pixel_pitch_m = sc[3],
@@ -185,22 +227,15 @@ struct BandContext {
 std::pair<torch::Tensor, torch::Tensor> band_psf(const BandContext& b, const torch::Tensor& h) {
   const int64_t P = b.psf_size, n = b.nodes, Z = int64_t(b.depths_m.size());
   const torch::Tensor field = compute_pupil_field(b.aperture, h, b.wavelength_m, b.refractive_index, b.complex_dtype);
-  std::vector<torch::Tensor> chirps;
-  for (double z : b.depths_m) {
-    torch::Tensor c = compute_defocus_chirp(b.pupil_x, b.wavelength_m, z, b.sensor_distance_m, b.complex_dtype);
-    const auto real = c10::toRealValueType(b.complex_dtype);
-    const double k = 2.0 * M_PI / b.wavelength_m, curvature = 1.0 / z + 1.0 / b.sensor_distance_m;
-    const torch::Tensor slope = b.pupil_x * (k * curvature);  // the chirp's slope across each cell
-    if (b.cross) {  // [2, N]: sinc(A) on the main term, −sinc'(A) on the cross term
-      chirps.push_back(torch::stack({c * cell_average_factor(slope, b.doe_pitch_m).to(real),
-                                     c * cell_cross_factor(slope, b.doe_pitch_m).to(real)}));
-    } else {
-      chirps.push_back(b.cell_sinc ? c * cell_average_factor(slope, b.doe_pitch_m).to(real) : c);
-    }
-  }
   // |K_z M K_zᵀ|² with K_z = tilt ⊙ chirp_z: [Z, P·n, P·n]; the kernels are rebuilt in backward, not stored.
-  const torch::Tensor I = b.left.defined() ? mft_intensity_low_rank({b.left, b.right}, torch::stack(chirps), field)
-                                           : mft_intensity(b.tilt, torch::stack(chirps), field);
+  torch::Tensor I;
+  if (b.depth_basis.defined()) {
+    I = mft_intensity_depth_basis({b.depth_left, b.depth_basis}, field);
+  } else {
+    const torch::Tensor chirps = depth_chirps(b.pupil_x, b.wavelength_m, b.depths_m, b.sensor_distance_m, b.doe_pitch_m,
+                                              b.cell_sinc, b.cross, b.complex_dtype);
+    I = b.left.defined() ? mft_intensity_low_rank({b.left, b.right}, chirps, field) : mft_intensity(b.tilt, chirps, field);
+  }
   // Pixel integral: Gauss–Legendre weights over each pixel's n×n nodes, one
   // axis at a time (a product over the contiguous axis, then over rows).
   const torch::Tensor cols = torch::mv(I.reshape({-1, n}), b.weights).view({Z * P, n, P});  // Σ_j w_j I[.., j]
@@ -256,6 +291,15 @@ std::vector<int64_t> PsfSimulator::kernel_ranks() const {
   return r;
 }
 
+std::vector<int64_t> PsfSimulator::depth_basis_ranks() const {
+  std::vector<int64_t> r;
+  for (size_t j = 0; j < kernels_->kernels.size(); ++j) {
+    const NodeKernel& k = kernel(j);
+    r.push_back(k.depth_basis.defined() ? k.depth_basis.size(0) : 0);
+  }
+  return r;
+}
+
 PsfStack PsfSimulator::compute(const torch::Tensor& height_m, const std::vector<int64_t>& depth_indices,
                                const std::function<void(int64_t)>& on_band,
                                const std::vector<int64_t>& band_indices) const {
@@ -287,6 +331,9 @@ PsfStack PsfSimulator::compute(const torch::Tensor& height_m, const std::vector<
   b.cell_sinc = s.cell_sinc();
   b.cross = s.cell_kernel_terms() == 2;
   for (int64_t z : zi) b.depths_m.push_back(s.depths_m[size_t(z)]);
+  bool all_depths = zi.size() == s.depths_m.size();
+  for (size_t i = 0; i < zi.size() && all_depths; ++i) all_depths = zi[i] == int64_t(i);
+  const torch::Tensor zsel = torch::tensor(zi, torch::TensorOptions().dtype(torch::kLong).device(s.device));
 
   std::vector<torch::Tensor> psfs, energies;
   for (int64_t l : li) {
@@ -295,6 +342,9 @@ PsfStack PsfSimulator::compute(const torch::Tensor& height_m, const std::vector<
       const size_t j = size_t(l * K + q);
       const NodeKernel& kj = kernel(j);
       b.tilt = kj.tilt, b.left = kj.left, b.right = kj.right, b.weights = kj.weights;
+      b.depth_basis = kj.depth_basis;
+      b.depth_left = kj.depth_left.defined() ? (all_depths ? kj.depth_left : kj.depth_left.index_select(0, zsel))
+                                             : torch::Tensor();
       b.wavelength_m = node_wavelength_m_[j], b.refractive_index = node_index_[j], b.nodes = s.pixel_nodes[size_t(l)];
       torch::Tensor p, e;
       if (checkpoint) {

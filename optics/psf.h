@@ -44,6 +44,13 @@ struct PsfSpec {
   // Relative singular-value cut of the low-rank tilt kernels (fresnel_mft.h);
   // 0 = the exact matrix Fourier transform.
   double mft_rank_tol = 1e-6;
+  // With mft_rank_tol > 0: also factor each wavelength's kernels jointly over
+  // all depths (fresnel_mft.h, DepthBasis), so the depths share one product
+  // with the pupil field. Costs a one-off factorisation per wavelength (about
+  // 0.1 s on the paper config) that pays back from the tenth call or so: worth
+  // it where the same simulator runs many times (training, design), not in a
+  // one-shot app. The error stays within the rank cut (mft_rank_tol).
+  bool depth_basis = false;
   // Pupil sub-samples per DOE cell and axis (k): the height map stays [N, N];
   // each cell of constant height is evaluated at k×k points of pitch δ/k.
   int64_t pupil_oversampling = 1;
@@ -96,6 +103,8 @@ class PsfSimulator {
   const torch::Tensor& aperture() const { return aperture_; }  // float64 [N, N]
   // Rank kept for each spectral node's tilt kernel (its row count M when exact), [L·K].
   std::vector<int64_t> kernel_ranks() const;
+  // Rank R of each spectral node's joint depth basis, [L·K] (0 without spec.depth_basis).
+  std::vector<int64_t> depth_basis_ranks() const;
   torch::ScalarType complex_dtype() const;
 
  private:
@@ -109,6 +118,7 @@ class PsfSimulator {
     torch::Tensor tilt;         // complex [P·n_l, N·k] (exact path; undefined when factored)
     torch::Tensor left, right;  // low-rank factors of the tilt kernel (if mft_rank_tol > 0)
     torch::Tensor weights;      // real [n_l], pixel Gauss-Legendre weights, sum 1
+    torch::Tensor depth_left, depth_basis;  // joint factors over all depths [Z, P·n_l, R], [R, N·k] (spec.depth_basis)
   };
   struct KernelCache {
     explicit KernelCache(size_t n) : kernels(n), once(new std::once_flag[n]) {}

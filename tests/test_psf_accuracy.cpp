@@ -100,3 +100,63 @@ TEST_CASE("the window kernel's factors from the Gram matrix are the truncated SV
     }
   }
 }
+
+TEST_CASE("the joint depth basis matches the per-depth kernels with about one depth's rank", "[psf][accuracy]") {
+  const Config cfg = load_config(test::source_path("configs/paper.json"), {"optics.doe.init=spiral"});
+  const auto material = optics::Material::load(cfg.optics.material);
+  const torch::Tensor h = optics::make_doe(cfg.optics, material, cfg.seed, torch::kCPU).height().detach();
+  auto spec = optics::make_psf_spec(cfg.optics, material, torch::kCPU);
+  spec.real_dtype = torch::kFloat64;
+  spec.wavelengths_m = {420e-9, 540e-9, 660e-9};
+  spec.spectral_samples = 1;
+  spec.refractive_index = material.indices(spec.wavelengths_m);
+  spec.pixel_nodes = {3, 3, 2};
+  REQUIRE(spec.depths_m.size() == 7);
+  REQUIRE(spec.cell_kernel_terms() == 2);  // sinc_cross: two kernel terms per depth
+  auto joint_spec = spec, exact_spec = spec;
+  joint_spec.depth_basis = true;
+  exact_spec.mft_rank_tol = 0.0;
+  torch::NoGradGuard ng;
+  const optics::PsfSimulator per_depth(spec), joint(joint_spec), exact(exact_spec);
+  const auto a = joint.compute(h), b = per_depth.compute(h), c = exact.compute(h);
+  const double err_low = rel_l1(a.psf, b.psf).max().item<double>(), err_exact = rel_l1(a.psf, c.psf).max().item<double>();
+  INFO("joint vs per-depth low rank: " << err_low << ", joint vs exact MFT: " << err_exact);
+  CHECK(err_low < 1e-5);
+  CHECK(err_exact < 2e-5);
+  CHECK((a.energy_in_window - c.energy_in_window).abs().max().item<double>() < 1e-6);
+  // A subset of depths, in any order, is the full stack's slices (the basis spans every depth).
+  const auto sub = joint.compute(h, {5, 1});
+  CHECK(torch::allclose(sub.psf, a.psf.index_select(1, torch::tensor({5, 1})), 0.0, 1e-14));
+  // Rank: at most one depth's two kernel terms (2r), far below the Z·2r rows of the per-depth products.
+  const auto R = joint.depth_basis_ranks(), r = joint.kernel_ranks();
+  for (size_t l = 0; l < R.size(); ++l) {
+    INFO("band " << l << ": joint rank " << R[l] << ", one depth's rank " << r[l] << " (x2 terms), 7 depths " << 14 * r[l]);
+    CHECK(R[l] > r[l]);
+    CHECK(R[l] <= 2 * r[l]);
+  }
+  CHECK(per_depth.depth_basis_ranks() == std::vector<int64_t>(3, 0));
+}
+
+TEST_CASE("the joint depth basis is the stacked kernels' truncated SVD", "[psf][accuracy]") {
+  // The paper's geometry at 550 nm: 63 pixels x 2 nodes, 512 pupil samples, 7 depths 0.4-2 m.
+  const torch::Tensor x = (torch::arange(126, torch::kFloat64) - 62.5) * (6.22e-6 / 2.0);
+  const torch::Tensor xi = (torch::arange(512, torch::kFloat64) - 255.5) * 4e-6;
+  const torch::Tensor T = optics::compute_tilt_kernel(x, xi, 550e-9, 0.05, torch::kComplexDouble);
+  std::vector<torch::Tensor> ks;
+  for (double z : {0.4, 0.4615, 0.5455, 0.6667, 0.8571, 1.2, 2.0})
+    ks.push_back(T * optics::compute_defocus_chirp(xi, 550e-9, z, 0.05, torch::kComplexDouble).view({1, -1}));
+  const torch::Tensor K = torch::stack(ks);  // [7, 126, 512]
+  const torch::Tensor X = K.reshape({-1, 512});
+  const torch::Tensor S = torch::linalg_svdvals(X);
+  for (double tol : {1e-3, 1e-4, 1e-6}) {
+    INFO("tol " << tol);
+    const optics::DepthBasis d = optics::factor_depth_kernels(K, tol, torch::kComplexDouble);
+    const int64_t R = d.basis.size(0), r_svd = (S > tol * S[0].item<double>()).sum().item<int64_t>();
+    CHECK(std::abs(R - r_svd) <= 1);
+    CHECK(torch::allclose(torch::mm(d.basis, d.basis.conj().t()), torch::eye(R, d.basis.options()), 0.0, 1e-10));
+    // Eckart-Young: the stack's error is its first discarded singular value.
+    const double err = torch::linalg_matrix_norm(X - torch::mm(d.left.reshape({-1, R}), d.basis), 2).item<double>();
+    CHECK(err <= 1.05 * S[R].item<double>() + 1e-12 * S[0].item<double>());
+    CHECK(err < 1.05 * tol * S[0].item<double>());
+  }
+}

@@ -93,3 +93,30 @@ TEST_CASE("recomputing bands in the backward pass gives the same gradient", "[ps
   CHECK(grads[0].abs().max().item<double>() > 0.0);
   CHECK(torch::allclose(grads[0], grads[1], 1e-10, 1e-14));
 }
+
+TEST_CASE("the PSF gradient through the joint depth basis matches finite differences in float64", "[psf][gradient]") {
+  const int64_t N = 12, P = 5;
+  auto spec = test::make_spec({480e-9, 620e-9}, {0.4, 0.8, 2.0}, N, 10e-6, 0.11e-3, P, 10e-6, 0.02, 3);
+  spec.mft_rank_tol = 1e-4;
+  spec.depth_basis = true;
+  const optics::PsfSimulator sim(spec);
+  REQUIRE(sim.depth_basis_ranks()[0] > 0);
+  const torch::Tensor h0 = optics::random_height(N, 1.2e-6, 5);
+  torch::manual_seed(4);
+  const torch::Tensor w = torch::randn({2, 3, P, P}, torch::kFloat64);
+  auto loss = [&](const torch::Tensor& h) { return (sim.compute(h).psf * w).sum(); };
+  torch::Tensor h = h0.clone().set_requires_grad(true);
+  loss(h).backward();
+  const torch::Tensor g = h.grad();
+  REQUIRE(g.abs().max().item<double>() > 0.0);
+  const double eps = 1e-11;
+  for (int64_t idx : {int64_t(5 * N + 5), int64_t(6 * N + 3), int64_t(4 * N + 7), int64_t(7 * N + 6)}) {
+    const int64_t i = idx / N, j = idx % N;
+    torch::Tensor hp = h0.clone(), hm = h0.clone();
+    hp[i][j] += eps;
+    hm[i][j] -= eps;
+    const double fd = (loss(hp).item<double>() - loss(hm).item<double>()) / (2.0 * eps);
+    INFO("sample (" << i << ", " << j << "): autograd " << g[i][j].item<double>() << ", finite difference " << fd);
+    CHECK(std::fabs(g[i][j].item<double>() - fd) <= 1e-6 * std::max(1.0, std::fabs(fd)) + 1e-6 * g.abs().max().item<double>());
+  }
+}

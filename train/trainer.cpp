@@ -101,12 +101,18 @@ int64_t render_margin_px(const Config& cfg) {
                                         : cfg.optics.psf_size / 2 + int64_t(std::ceil(3.0 * cfg.sensor.mask_sigma_px));
 }
 
+optics::PsfSpec training_psf_spec(const Config& cfg, const optics::Material& material, torch::Device device) {
+  optics::PsfSpec spec = optics::make_psf_spec(cfg.optics, material, device);
+  spec.depth_basis = true;  // the kernels are reused every step: factor them once over all depths (psf.h)
+  return spec;
+}
+
 Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
     : cfg_(cfg),
       group_(group && group->world_size() > 1 ? std::move(group) : nullptr),
       device_(resolve_device(cfg.device)),
       material_(optics::Material::load(cfg.optics.material)),
-      psf_(std::make_unique<optics::PsfSimulator>(optics::make_psf_spec(cfg.optics, material_, device_))),
+      psf_(std::make_unique<optics::PsfSimulator>(training_psf_spec(cfg, material_, device_))),
       sensor_(optics::make_sensor_model(cfg.sensor, psf_->spec(), cfg.optics.band_width_m())),
       doe_(optics::make_doe(cfg.optics, material_, cfg.seed, device_)) {
   {

@@ -71,6 +71,10 @@ struct ValStats {
 // scene's image at its pixels (tests: sensor, margin).
 int64_t render_margin_px(const Config& cfg);
 
+// The simulator's spec for training: make_psf_spec with the joint depth
+// basis on (optics/psf.h), since the kernels are reused at every step.
+optics::PsfSpec training_psf_spec(const Config& cfg, const optics::Material& material, torch::Device device);
+
 // InputError naming train.batch_size unless the global batch splits evenly over the ranks.
 void check_global_batch(const Config& cfg, int world_size);
 
