@@ -194,6 +194,9 @@ int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out) {
   for (double tol : {1e-3, 1e-4, 1e-6, 1e-8})
     if (tol != base.mft_rank_tol) add("rank_tol_" + fmt("%.0e", tol), "mft_rank_tol", fmt("%.0e", tol), [tol](optics::PsfSpec& s) { s.mft_rank_tol = tol; });
   add("exact_mft", "mft_rank_tol", "0 (exact MFT)", [](optics::PsfSpec& s) { s.mft_rank_tol = 0.0; });
+  if (!base.depth_basis)
+    add("depth_basis", "depth_basis (training's kernels)", "joint over depths",
+        [](optics::PsfSpec& s) { s.depth_basis = true; });
   add("pupil_x2", "pupil_oversampling", "2", [](optics::PsfSpec& s) { s.pupil_oversampling = 2; });
   for (const char* rule : {"midpoint", "sinc", "sinc_cross"})
     if (base.pupil_cell_integration != rule)

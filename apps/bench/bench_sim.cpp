@@ -35,9 +35,13 @@ double rel_l1_max(const torch::Tensor& a, const torch::Tensor& ref) {
 struct FloorWork {
   std::vector<torch::Tensor> kernels;  // per band [Z, r, N] (r = the kernel's rank, M when exact)
   std::vector<torch::Tensor> lefts;    // per band [M, r] (undefined when exact)
+  std::vector<torch::Tensor> bases;    // per band [R, N] with the joint depth basis (then kernels/lefts are empty)
+  std::vector<torch::Tensor> depth_lefts;  // per band [Z, M, R]
   torch::Tensor field, image, psf, ew, eh, image_grad;
   int64_t nh = 0, layers = 0;
-  FloorWork(const optics::PsfSpec& spec, const std::vector<int64_t>& ranks, int64_t layers_, int64_t patch)
+  // depth_ranks: the joint depth basis's rank per band (optics/psf.h), empty without it.
+  FloorWork(const optics::PsfSpec& spec, const std::vector<int64_t>& ranks, int64_t layers_, int64_t patch,
+            const std::vector<int64_t>& depth_ranks = {})
       : layers(layers_) {
     const int64_t N = spec.doe_samples, P = spec.psf_size, r = P / 2, L = int64_t(spec.wavelengths_m.size());
     nh = fast_fft_size(patch + 2 * r);
@@ -45,7 +49,12 @@ struct FloorWork {
     field = torch::randn({N, N}, c);
     // With the cross term of the cell integration the low-rank kernels carry G = 2 terms.
     const int64_t G = spec.cell_kernel_terms();
-    for (size_t l = 0; l < ranks.size(); ++l) {
+    for (size_t l = 0; l < depth_ranks.size(); ++l) {
+      const int64_t M = P * spec.pixel_nodes[l / size_t(spec.spectral_samples)];
+      bases.push_back(torch::randn({depth_ranks[l], N}, c));
+      depth_lefts.push_back(torch::randn({layers, M, depth_ranks[l]}, c));
+    }
+    for (size_t l = 0; l < ranks.size() && depth_ranks.empty(); ++l) {
       const int64_t M = P * spec.pixel_nodes[l / size_t(spec.spectral_samples)];
       const bool low = ranks[l] < M;
       kernels.push_back(torch::randn({layers, low ? G * ranks[l] : M, N}, c));
@@ -70,6 +79,14 @@ struct FloorWork {
       }
       const torch::Tensor gb = torch::bmm(f, k);                                      // backward bmm
       torch::mm(k.view({Z * M, N}).t(), gb.view({Z * M, N}));                        // backward GEMM
+    }
+    for (size_t l = 0; l < bases.size(); ++l) {  // joint depth basis: F_z = L_z (B M Bᵀ) L_zᵀ and back
+      const torch::Tensor &B = bases[l], &Lz = depth_lefts[l];
+      const int64_t Z = Lz.size(0), M = Lz.size(1), R = Lz.size(2);
+      const torch::Tensor y = torch::mm(torch::mm(B, field), B.t());
+      const torch::Tensor f = torch::bmm(torch::mm(Lz.view({Z * M, R}), y).view({Z, M, R}), Lz.transpose(1, 2));
+      const torch::Tensor gy = torch::mm(Lz.view({Z * M, R}).t(), torch::bmm(f, Lz).view({Z * M, R}));
+      torch::mm(B.t(), torch::mm(gy, B));
     }
     torch::fft::rfft2(image);                                                         // band FFTs
     const int64_t P = psf.size(1), LZ = psf.size(0) / P, nwr = ew.size(1);
@@ -158,6 +175,21 @@ int bench_sim(Config cfg, const AppArgs& args, BenchOutput& out) {
   log::info("floor (bare matrix products and FFTs) ...");
   const FloorWork floor(spec, sim.kernel_ranks(), depths, patch);
   const double t_floor = median_seconds([&] { floor.run(); }, repeats);
+  // The training's simulator: the same PSFs through the joint depth basis (psf.h), and its own floor.
+  auto joint_spec = spec;
+  joint_spec.depth_basis = true;
+  const optics::PsfSimulator joint_sim(joint_spec);
+  auto joint_step = [&] {
+    torch::Tensor h = h0.clone().set_requires_grad(true);
+    const torch::Tensor p = joint_sim.compute(h).psf.to(torch::kFloat32);
+    const torch::Tensor J = optics::render_sensor_image(radiance, optics::layer_masks(depth_all, spec.depths_m, 1.0), p, omega);
+    (J * weights).sum().backward();
+  };
+  log::info("hsd with the joint depth basis (as in training), " + std::to_string(depths) + "-layer scene ...");
+  joint_step();  // builds the basis (once per simulator; not part of a step)
+  const double t_joint = median_seconds(joint_step, repeats);
+  const FloorWork joint_floor(spec, sim.kernel_ranks(), depths, patch, joint_sim.depth_basis_ranks());
+  const double t_joint_floor = median_seconds([&] { joint_floor.run(); }, repeats);
   double t_base = 0.0, peak_base = 0.0;
   if (!args.has("--no-baseline")) {
     log::info("baseline (FFT + bilinear PSFs, one FFT convolution per (lambda, z)) ...");
@@ -166,7 +198,7 @@ int bench_sim(Config cfg, const AppArgs& args, BenchOutput& out) {
   }
   log::info("PSF accuracy against float64 with 8x8 nodes per pixel ...");
   torch::Tensor ref;
-  double err_hsd = 0.0, err_base = 0.0;
+  double err_hsd = 0.0, err_base = 0.0, err_joint = 0.0;
   {
     torch::NoGradGuard g;
     auto ref_spec = spec;
@@ -175,6 +207,7 @@ int bench_sim(Config cfg, const AppArgs& args, BenchOutput& out) {
     ref_spec.mft_rank_tol = 0.0;
     ref = optics::PsfSimulator(ref_spec).compute(h0).psf;
     err_hsd = rel_l1_max(sim.compute(h0).psf, ref);
+    err_joint = rel_l1_max(joint_sim.compute(h0).psf, ref);
     if (!args.has("--no-baseline")) err_base = rel_l1_max(baseline_fft_psf(spec, aperture, h0), ref);
   }
 
@@ -195,7 +228,12 @@ int bench_sim(Config cfg, const AppArgs& args, BenchOutput& out) {
                   {"rss_at_start_mib", rss_start},
                   {"seconds_floor", t_floor},
                   {"ratio_to_floor", t_all / t_floor},
-                  {"psf_rel_l1_max", err_hsd}};
+                  {"psf_rel_l1_max", err_hsd},
+                  {"depth_basis_ranks", joint_sim.depth_basis_ranks()},
+                  {"depth_basis_seconds_fwd_bwd", t_joint},
+                  {"depth_basis_seconds_floor", t_joint_floor},
+                  {"depth_basis_ratio_to_floor", t_joint / t_joint_floor},
+                  {"depth_basis_psf_rel_l1_max", err_joint}};
   if (!args.has("--no-baseline")) {
     out.json["baseline_seconds_fwd_bwd"] = t_base;
     out.json["baseline_peak_rss_mib"] = peak_base;
@@ -216,6 +254,13 @@ int bench_sim(Config cfg, const AppArgs& args, BenchOutput& out) {
   std::snprintf(buf, sizeof buf, "%-36s %11.3f\n", "hsd, 1-layer scene", t_one);
   text += buf;
   std::snprintf(buf, sizeof buf, "%-36s %11.3f\n", "floor (bare GEMMs and FFTs)", t_floor);
+  text += buf;
+  std::snprintf(buf, sizeof buf, "%-36s %11.3f %15s %17.2e\n", "hsd, joint depth basis (training)", t_joint, "", err_joint);
+  text += buf;
+  std::snprintf(buf, sizeof buf, "%-36s %11.3f\n", "its floor (bare GEMMs and FFTs)", t_joint_floor);
+  text += buf;
+  std::snprintf(buf, sizeof buf, "joint depth basis: %.2fx faster than per depth, %.2fx its floor\n", t_all / t_joint,
+                t_joint / t_joint_floor);
   text += buf;
   if (!args.has("--no-baseline")) {
     std::snprintf(buf, sizeof buf, "%-36s %11.3f %15.0f %17.2e\n", "baseline (FFT PSF + per-(l,z) conv)", t_base,
