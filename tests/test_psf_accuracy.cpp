@@ -16,6 +16,19 @@ namespace {
 torch::Tensor rel_l1(const torch::Tensor& a, const torch::Tensor& ref) {
   return (a.to(torch::kFloat64) - ref).abs().sum({2, 3}) / ref.abs().sum({2, 3});
 }
+// The paper geometry in float64 at three band centres (420, 540, 660 nm; 3, 3
+// and 2 pixel nodes; no spectral samples), and its spiral DOE's heights.
+std::pair<optics::PsfSpec, torch::Tensor> three_band_paper_spiral() {
+  const Config cfg = load_config(test::source_path("configs/paper.json"), {"optics.doe.init=spiral"});
+  const auto material = optics::Material::load(cfg.optics.material);
+  auto spec = optics::make_psf_spec(cfg.optics, material, torch::kCPU);
+  spec.real_dtype = torch::kFloat64;
+  spec.wavelengths_m = {420e-9, 540e-9, 660e-9};
+  spec.spectral_samples = 1;
+  spec.refractive_index = material.indices(spec.wavelengths_m);
+  spec.pixel_nodes = {3, 3, 2};
+  return {spec, optics::make_doe(cfg.optics, material, cfg.seed, torch::kCPU).height().detach()};
+}
 }  // namespace
 
 TEST_CASE("paper defaults meet the PSF accuracy target", "[psf][accuracy]") {
@@ -51,15 +64,8 @@ TEST_CASE("paper defaults meet the PSF accuracy target", "[psf][accuracy]") {
 }
 
 TEST_CASE("low-rank window kernels match the exact MFT and keep far fewer ranks than rows", "[psf][accuracy]") {
-  const Config cfg = load_config(test::source_path("configs/paper.json"), {"optics.doe.init=spiral"});
-  const auto material = optics::Material::load(cfg.optics.material);
-  const torch::Tensor h = optics::make_doe(cfg.optics, material, cfg.seed, torch::kCPU).height().detach();
-  auto spec = optics::make_psf_spec(cfg.optics, material, torch::kCPU);
-  spec.real_dtype = torch::kFloat64;
-  spec.wavelengths_m = {420e-9, 540e-9, 660e-9};
-  spec.spectral_samples = 1;
-  spec.refractive_index = material.indices(spec.wavelengths_m);
-  spec.pixel_nodes = {3, 3, 2};
+  const auto [spec0, h] = three_band_paper_spiral();
+  auto spec = spec0;
   auto exact_spec = spec;
   exact_spec.mft_rank_tol = 0.0;
   torch::NoGradGuard ng;
@@ -102,15 +108,8 @@ TEST_CASE("the window kernel's factors from the Gram matrix are the truncated SV
 }
 
 TEST_CASE("the joint depth basis matches the per-depth kernels with about one depth's rank", "[psf][accuracy]") {
-  const Config cfg = load_config(test::source_path("configs/paper.json"), {"optics.doe.init=spiral"});
-  const auto material = optics::Material::load(cfg.optics.material);
-  const torch::Tensor h = optics::make_doe(cfg.optics, material, cfg.seed, torch::kCPU).height().detach();
-  auto spec = optics::make_psf_spec(cfg.optics, material, torch::kCPU);
-  spec.real_dtype = torch::kFloat64;
-  spec.wavelengths_m = {420e-9, 540e-9, 660e-9};
-  spec.spectral_samples = 1;
-  spec.refractive_index = material.indices(spec.wavelengths_m);
-  spec.pixel_nodes = {3, 3, 2};
+  const auto [spec0, h] = three_band_paper_spiral();
+  auto spec = spec0;
   REQUIRE(spec.depths_m.size() == 7);
   REQUIRE(spec.cell_kernel_terms() == 2);  // sinc_cross: two kernel terms per depth
   auto joint_spec = spec, exact_spec = spec;
