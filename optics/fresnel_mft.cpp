@@ -277,9 +277,9 @@ DepthBasis factor_depth_kernels(const torch::Tensor& kernels, double rel_tol, c1
   // and a Rayleigh-Ritz step, p doubled until the cut falls 8 columns inside
   // them; p = N is the full eigendecomposition. No power iteration: XᴴX
   // already squares the singular values, and its square would push those at
-  // the cut (σ⁴ ~ 1e-16 σ_max⁴ at rel_tol 1e-4) below float64's rounding. The random test matrix comes from a fixed
-  // private generator: the factors are deterministic and torch's global
-  // generator is not touched.
+  // the cut (σ⁴ ~ 1e-16 σ_max⁴ at rel_tol 1e-4) below float64's rounding.
+  // The random test matrix comes from a fixed private generator: the factors
+  // are deterministic and torch's global generator is not touched.
   const torch::Tensor gram = torch::mm(X.conj().t(), X);
   auto gen = at::make_generator<at::CPUGeneratorImpl>(/*seed=*/20211011);
   int64_t p = std::min<int64_t>(N, std::max<int64_t>(16, M / 2));

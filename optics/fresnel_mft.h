@@ -102,8 +102,8 @@ torch::Tensor mft_intensity_low_rank(const LowRankKernel& kernel, const torch::T
 // Z·G·r·N². The kernels differ between depths only by the defocus chirp
 // exp(i k ξ²/(2z)), so the stack has rank close to one depth's: measured on
 // the paper config, R = 39–56 against Z·G·r = 462–672 rows (README, Benchmarks).
-// kernels: complex [Z, M, N] (complex128 recommended). Computed through the
-// Hermitian Gram matrix of the stack's smaller side, in complex128.
+// kernels: complex [Z, M, N] (complex128 recommended). Computed from the
+// stack's Gram matrix [N, N] in complex128 by a randomised range finder.
 struct DepthBasis {
   torch::Tensor left;   // complex [Z, M, R] (L_z)
   torch::Tensor basis;  // complex [R, N] (B, orthonormal rows)

@@ -333,7 +333,10 @@ PsfStack PsfSimulator::compute(const torch::Tensor& height_m, const std::vector<
   for (int64_t z : zi) b.depths_m.push_back(s.depths_m[size_t(z)]);
   bool all_depths = zi.size() == s.depths_m.size();
   for (size_t i = 0; i < zi.size() && all_depths; ++i) all_depths = zi[i] == int64_t(i);
-  const torch::Tensor zsel = torch::tensor(zi, torch::TensorOptions().dtype(torch::kLong).device(s.device));
+  // The joint depth basis holds every configured depth; a subset picks its rows.
+  const torch::Tensor zsel = s.depth_basis && !all_depths
+                                 ? torch::tensor(zi, torch::TensorOptions().dtype(torch::kLong).device(s.device))
+                                 : torch::Tensor();
 
   std::vector<torch::Tensor> psfs, energies;
   for (int64_t l : li) {
@@ -343,8 +346,7 @@ PsfStack PsfSimulator::compute(const torch::Tensor& height_m, const std::vector<
       const NodeKernel& kj = kernel(j);
       b.tilt = kj.tilt, b.left = kj.left, b.right = kj.right, b.weights = kj.weights;
       b.depth_basis = kj.depth_basis;
-      b.depth_left = kj.depth_left.defined() ? (all_depths ? kj.depth_left : kj.depth_left.index_select(0, zsel))
-                                             : torch::Tensor();
+      b.depth_left = kj.depth_left.defined() && zsel.defined() ? kj.depth_left.index_select(0, zsel) : kj.depth_left;
       b.wavelength_m = node_wavelength_m_[j], b.refractive_index = node_index_[j], b.nodes = s.pixel_nodes[size_t(l)];
       torch::Tensor p, e;
       if (checkpoint) {

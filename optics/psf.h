@@ -47,7 +47,7 @@ struct PsfSpec {
   // With mft_rank_tol > 0: also factor each wavelength's kernels jointly over
   // all depths (fresnel_mft.h, DepthBasis), so the depths share one product
   // with the pupil field. Costs a one-off factorisation per wavelength (about
-  // 0.1 s on the paper config) that pays back from the tenth call or so: worth
+  // 50 ms on the paper config) that pays back after a few calls: worth
   // it where the same simulator runs many times (training, design), not in a
   // one-shot app. The error stays within the rank cut (mft_rank_tol).
   bool depth_basis = false;

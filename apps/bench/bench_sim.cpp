@@ -54,7 +54,8 @@ struct FloorWork {
       bases.push_back(torch::randn({depth_ranks[l], N}, c));
       depth_lefts.push_back(torch::randn({layers, M, depth_ranks[l]}, c));
     }
-    for (size_t l = 0; l < ranks.size() && depth_ranks.empty(); ++l) {
+    const size_t per_depth_bands = depth_ranks.empty() ? ranks.size() : 0;  // the joint basis replaces them
+    for (size_t l = 0; l < per_depth_bands; ++l) {
       const int64_t M = P * spec.pixel_nodes[l / size_t(spec.spectral_samples)];
       const bool low = ranks[l] < M;
       kernels.push_back(torch::randn({layers, low ? G * ranks[l] : M, N}, c));
