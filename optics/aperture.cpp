@@ -21,9 +21,24 @@ torch::Tensor aperture_transmission(int64_t n, double pitch_m, double diameter_m
     return torch::outer(inside, inside);
   }
   if (shape != "circle") input_error("config key optics.aperture_shape", "unknown shape \"" + shape + "\"");
-  const torch::Tensor r2 = x.view({-1, 1}).pow(2) + x.view({1, -1}).pow(2);
-  const torch::Tensor inside = (r2 <= r * r).to(torch::kFloat64).view({1, 1, n * ss, n * ss});
-  return torch::avg_pool2d(inside, {ss, ss}).view({n, n});
+  // A cell's value is the mean over its ss×ss sub-samples of [x_a² + y_b² ≤ r²].
+  // Rounding is monotone, so a cell whose farthest sub-sample sum is inside is
+  // wholly inside and one whose nearest is outside wholly outside: only the
+  // edge cells (≈ 4·D/δ of them, not N²) are sub-sampled, with the same float
+  // sums as the full ss·N × ss·N grid would use, so the result is bitwise the
+  // same (tests/test_psf_closed_forms.cpp) at a fraction of its cost (the full
+  // grid is 16.7 M samples at N = 512: ~0.1 s of every simulator's set-up).
+  const double r2 = r * r;
+  const torch::Tensor x2 = x.pow(2).view({n, ss});  // [N, ss]: squared sub-sample coordinates per cell
+  const torch::Tensor near = std::get<0>(x2.min(1)), far = std::get<0>(x2.max(1));  // [N]
+  torch::Tensor a = ((far.view({-1, 1}) + far.view({1, -1})) <= r2).to(torch::kFloat64);  // [N, N]: wholly inside
+  const torch::Tensor edge = (((near.view({-1, 1}) + near.view({1, -1})) <= r2) & (a < 0.5)).nonzero();  // [E, 2]
+  if (edge.size(0) > 0) {
+    const torch::Tensor iy = edge.select(1, 0), ix = edge.select(1, 1);
+    const torch::Tensor sums = x2.index_select(0, iy).unsqueeze(2) + x2.index_select(0, ix).unsqueeze(1);  // [E, ss, ss]
+    a.index_put_({iy, ix}, (sums <= r2).to(torch::kFloat64).mean({1, 2}));
+  }
+  return a;
 }
 
 }  // namespace hsd::optics

@@ -31,6 +31,32 @@ double airy_pixel_fraction(double x, double y, double p, double lambda, double s
 
 }  // namespace
 
+TEST_CASE("circular aperture: edge cells get their covered fraction, exactly as the full 8x8 sub-sample grid gives",
+          "[psf][closed-form]") {
+  // The reference: every sub-sample of every cell (what the function did
+  // before it sub-sampled only the edge cells).
+  auto full_grid = [](int64_t n, double pitch, double diameter) {
+    const int64_t ss = 8;
+    const torch::Tensor x = ((torch::arange(n * ss, torch::kFloat64) + 0.5) / double(ss) - 0.5 * double(n)) * pitch;
+    const double r = 0.5 * diameter;
+    const torch::Tensor r2 = x.view({-1, 1}).pow(2) + x.view({1, -1}).pow(2);
+    return torch::avg_pool2d((r2 <= r * r).to(torch::kFloat64).view({1, 1, n * ss, n * ss}), {ss, ss}).view({n, n});
+  };
+  const double pitch = 8e-6;
+  // even and odd grids; apertures filling, overfilling, inside one cell, tangent to cell edges
+  for (const auto& [n, d] : std::vector<std::pair<int64_t, double>>{
+           {64, 64 * pitch}, {63, 40.3 * pitch}, {32, 50 * pitch}, {16, 0.7 * pitch}, {17, 0.3 * pitch}, {40, 20 * pitch}}) {
+    const torch::Tensor a = optics::aperture_transmission(n, pitch, d, "circle");
+    INFO("N = " << n << ", D = " << d / pitch << " pitches");
+    CHECK(torch::equal(a, full_grid(n, pitch, d)));
+  }
+  // The area is the disc's to the sub-sampling's accuracy.
+  const torch::Tensor a = optics::aperture_transmission(256, pitch, 200 * pitch, "circle");
+  CHECK(a.sum().item<double>() == Approx(M_PI * 100.0 * 100.0).epsilon(1e-3));
+  CHECK(a.min().item<double>() == 0.0);
+  CHECK(a.max().item<double>() == 1.0);
+}
+
 TEST_CASE("in-focus Fresnel DOE gives the Airy pattern", "[psf][closed-form]") {
   const double lambda = 550e-9, s = 0.05, z0 = 1.0, D = 2.0e-3, p = 1e-6, delta = 8e-6;
   const int64_t N = 256, P = 61;
