@@ -165,9 +165,16 @@ SpectralScene read_scene_exr(const std::string& path) {
       names.push_back(n);
     }
     scene.kind = kind_prefix == "T" ? SpectralKind::Reflectance : SpectralKind::Radiance;
-    scene.spectral = read_channels(file, names, H, W, dw);
-    scene.depth_m = read_channels(file, {"Z"}, H, W, dw);
-    scene.mask = has_mask ? read_channels(file, {"mask"}, H, W, dw) : torch::ones({1, H, W}, torch::kFloat32);
+    // One pass over the file: OpenEXR decompresses every channel of a line
+    // block whatever the frame buffer asks for, so three reads (bands, Z,
+    // mask) would decompress the file three times.
+    const int64_t L = int64_t(names.size());
+    names.push_back("Z");
+    if (has_mask) names.push_back("mask");
+    const torch::Tensor all = read_channels(file, names, H, W, dw);  // [L + 1 (+ 1), H, W]
+    scene.spectral = all.narrow(0, 0, L);
+    scene.depth_m = all.narrow(0, L, 1);
+    scene.mask = has_mask ? all.narrow(0, L + 1, 1) : torch::ones({1, H, W}, torch::kFloat32);
   } catch (const InputError&) {
     throw;
   } catch (const std::exception& e) {
