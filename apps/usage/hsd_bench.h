@@ -32,8 +32,9 @@ inline constexpr const char* kText =
     "              converged float64 reference, and what leaving out unneeded work\n"
     "              saves: error_vs_runtime.csv/.png, leave_out.csv, accuracy.md\n"
     "              (--patch 128 --band-stride 3 --ref-oversampling 4 --ref-spectral 5)\n"
-    "  NAME: apps  whole processes as a user runs them: hsd_psf --help, and\n"
-    "              hsd_simulate on a one-layer and an all-layer scene (--size 384)\n"
+    "  NAME: apps  whole processes as a user runs them: hsd_psf --help, the app's\n"
+    "              start-up alone, and hsd_simulate on a one-layer and an\n"
+    "              all-layer scene (--size 384)\n"
     "  --config defaults to configs/paper.json of the source tree.\n"
     "  --json prints exactly one JSON object on stdout.";
 
