@@ -352,6 +352,11 @@ Config parse_config(const Json& resolved) {
       m->fail("preinverse", "expected \"none\" or \"wiener\", got \"" + M.preinverse + "\"");
     M.preinverse_reg = m->get_number("preinverse_reg", M.preinverse_reg);
     if (!(M.preinverse_reg >= 1e-8 && M.preinverse_reg <= 1e3)) m->fail("preinverse_reg", "must be in [1e-8, 1e3]");
+    M.residual = m->get_string("residual", M.residual);
+    if (M.residual != "image" && M.residual != "preinverse")
+      m->fail("residual", "expected \"image\" or \"preinverse\", got \"" + M.residual + "\"");
+    if (M.residual == "preinverse" && M.preinverse != "wiener")
+      m->fail("residual", "\"preinverse\" needs model.preinverse = \"wiener\" (got \"" + M.preinverse + "\")");
   }
   if (auto t = r.optional_child("train")) {
     auto& T = c.train;

@@ -133,6 +133,11 @@ struct ModelConfig {
   // "none": the image alone (the paper's network).
   std::string preinverse = "none";
   double preinverse_reg = 1e-2;  // the Wiener regulariser ρ (noise-to-signal power)
+  // What the cube head's output is added to: "image", the spectral upsampling
+  // of the sensor image (the paper's residual); "preinverse", the spectral
+  // upsampling of the mean of the layers' Wiener deconvolutions (needs
+  // preinverse = "wiener"): a sharper start the network refines.
+  std::string residual = "image";
 };
 
 // Joint training of DOE and network (train/trainer.h).

@@ -98,8 +98,14 @@ torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
     // The network runs in the dtype of its weights (float32 as exported; bfloat16
     // after set_reconstructor_precision), in the input's memory format (`to`
     // keeps it; run_reconstructor passes channels-last); the outputs are float32.
-    << "        x = image\n";
-  if (pre) o << "        x = torch.cat([image, self.preinverse(image.float()).to(image.dtype)], 1)\n";
+    << "        x = image\n"
+    << "        base = image.float()\n";  // the cube residual's base (unet.cpp)
+  if (pre) {
+    o << "        pin = self.preinverse(image.float())\n"
+      << "        x = torch.cat([image, pin.to(image.dtype)], 1)\n";
+    if (opt.residual_preinverse)
+      o << "        base = pin.reshape([B, " << opt.preinverse_layers << ", C, H, W]).mean(1)\n";
+  }
   o
     << "        if ph > 0 or pw > 0:\n"
     << "            if ph < H and pw < W:\n"
@@ -130,7 +136,7 @@ torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
     << "        hs = hs[:, :, 0:H, 0:W].float().contiguous()\n"
     << "        d = d[:, :, 0:H, 0:W].float().contiguous()\n"
     << "        Lb = self.p_upsampling_weights.size(0)\n"
-    << "        up = torch.mm(self.p_upsampling_weights.float(), image.float().permute([1, 0, 2, 3]).reshape([C, B * H * W]))\n"
+    << "        up = torch.mm(self.p_upsampling_weights.float(), base.permute([1, 0, 2, 3]).reshape([C, B * H * W]))\n"
     << "        hs = hs + up.reshape([Lb, B, H, W]).permute([1, 0, 2, 3])\n"
     << "        inv_far = 1.0 / " << c10::str(opt.depth_max_m) << "\n"
     << "        inv_near = 1.0 / " << c10::str(opt.depth_min_m) << "\n"

@@ -55,6 +55,8 @@ HsdNetImpl::HsdNetImpl(const NetOptions& options, const torch::Tensor& upsamplin
   TORCH_CHECK(opt_.levels >= 1 && opt_.levels <= 8, "levels must be in [1, 8]");
   TORCH_CHECK(opt_.preinverse_layers >= 0 && (opt_.preinverse_layers == 0 || opt_.preinverse_reg > 0),
               "preinverse_layers must be >= 0 and preinverse_reg > 0");
+  TORCH_CHECK(!opt_.residual_preinverse || opt_.preinverse_layers > 0,
+              "residual_preinverse needs the pre-inversion (preinverse_layers > 0)");
   TORCH_CHECK(upsampling_weights.dim() == 2 && upsampling_weights.size(0) == opt_.bands &&
                   upsampling_weights.size(1) == opt_.in_channels,
               "upsampling weights must be [bands, in_channels]");
@@ -101,12 +103,15 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& p
   const int64_t H = image.size(2), W = image.size(3), m = int64_t(1) << opt_.levels;
   const int64_t ph = (m - H % m) % m, pw = (m - W % m) % m;
   torch::Tensor x = image;
+  torch::Tensor base = image;  // what the cube's residual is added to, after spectral upsampling
   if (opt_.preinverse_layers > 0) {
     const torch::Tensor p = preinverse_in.defined() ? preinverse_in : preinverse(image);
     TORCH_CHECK(p.dim() == 4 && p.size(0) == image.size(0) && p.size(1) == opt_.in_channels * opt_.preinverse_layers &&
                     p.size(2) == H && p.size(3) == W,
                 "pre-inversion input must be [B, ", opt_.in_channels * opt_.preinverse_layers, ", H, W], got ", p.sizes());
     x = torch::cat({image, p}, 1);
+    if (opt_.residual_preinverse)
+      base = preinverse_layer_mean(p, opt_.preinverse_layers).to(image.scalar_type());
   }
   if (ph || pw) {  // reflect needs pad < size; replicate always works
     F::PadFuncOptions o({0, pw, 0, ph});
@@ -144,7 +149,7 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& p
     d = d.narrow(2, 0, H).narrow(3, 0, W);
   }
   NetOutput out;
-  out.hs = hs + spectral_upsample(weights_, image);
+  out.hs = hs + spectral_upsample(weights_, base);
   const double inv_far = 1.0 / opt_.depth_max_m, inv_near = 1.0 / opt_.depth_min_m;
   out.inv_depth = inv_far + d * (inv_near - inv_far);
   out.depth_m = 1.0 / out.inv_depth;

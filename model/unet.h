@@ -39,6 +39,10 @@ struct NetOptions {
   // (in_channels·(1 + K) channels into the first block).
   int64_t preinverse_layers = 0;
   double preinverse_reg = 1e-2;    // ρ, the Wiener regulariser
+  // The cube head's residual base: false = the spectral upsampling of the
+  // image (the paper's); true = the spectral upsampling of the mean over the
+  // K layers of the Wiener deconvolutions (needs preinverse_layers > 0).
+  bool residual_preinverse = false;
 };
 
 struct NetOutput {

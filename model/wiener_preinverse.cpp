@@ -42,4 +42,11 @@ torch::Tensor wiener_preinverse(const torch::Tensor& image, const torch::Tensor&
   return X.narrow(3, r, H).narrow(4, r, W).reshape({B, K * C, H, W});
 }
 
+torch::Tensor preinverse_layer_mean(const torch::Tensor& preinverse, int64_t layers) {
+  TORCH_CHECK(layers > 0 && preinverse.dim() == 4 && preinverse.size(1) % layers == 0,
+              "pre-inversion must be [B, K*C, H, W] with K = ", layers, ", got ", preinverse.sizes());
+  const int64_t C = preinverse.size(1) / layers;
+  return preinverse.reshape({preinverse.size(0), layers, C, preinverse.size(2), preinverse.size(3)}).mean(1);
+}
+
 }  // namespace hsd::model

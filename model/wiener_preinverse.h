@@ -27,4 +27,10 @@ torch::Tensor camera_rgb_psfs(const torch::Tensor& psf, const torch::Tensor& ome
 // Float32 (float64 inputs stay float64, for gradient checks).
 torch::Tensor wiener_preinverse(const torch::Tensor& image, const torch::Tensor& rgb_psf, double reg);
 
+// The mean over the K layers of a pre-inversion [B, K·C, H, W] -> [B, C, H, W]:
+// one deconvolved image without choosing a layer. Upsampled spectrally, it is
+// the network's residual base with model.residual = "preinverse" and the
+// evaluation's Wiener baseline (train/baselines.h).
+torch::Tensor preinverse_layer_mean(const torch::Tensor& preinverse, int64_t layers);
+
 }  // namespace hsd::model

@@ -173,6 +173,8 @@ TEST_CASE("bad input: every app refuses stray, repeated and malformed arguments 
         {F.cfg + " --set \"data.root=$(printf 'x\\377y')\" --out " + out, 2, "data.root", ""},
         {F.cfg + " --set model.levels=5 --out " + out, 2, "model.levels", ""},
         {F.cfg + " --set model.preinverse=fft --out " + out, 2, "model.preinverse", ""},
+        {F.cfg + " --set model.residual=wiener --out " + out, 2, "model.residual", ""},
+        {F.cfg + " --set model.preinverse=none --set model.residual=preinverse --out " + out, 2, "model.residual", ""},
         {F.cfg + " --set train.depth_loss=l2 --out " + out, 2, "train.depth_loss", ""},
         {F.cfg + " --set fisher.model=gaussian --out " + out, 2, "fisher.model", ""},
         {F.cfg + " --set fisher.scene_noise_variance=0 --out " + out, 2, "fisher.scene_noise_variance", ""},

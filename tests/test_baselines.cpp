@@ -17,6 +17,7 @@
 #include "helpers.h"
 #include "model/spectral_upsampling.h"
 #include "model/unet.h"
+#include "model/wiener_preinverse.h"
 #include "optics/all_in_focus.h"
 #include "optics/depth_distinctness.h"
 #include "optics/doe.h"
@@ -138,10 +139,23 @@ TEST_CASE("baselines: a network that outputs the baselines scores exactly the ba
   }
   CHECK(r.mean.baseline_constant_depth_rmse_m ==
         Approx(0.5 * (r.scenes[0].baseline_constant_depth_rmse_m + r.scenes[1].baseline_constant_depth_rmse_m)));
+  // The Wiener baseline: a "network" answering with the layers' mean Wiener
+  // deconvolution, upsampled, scores exactly it; it is not the upsampling's.
+  const torch::Tensor rgb_psf = model::camera_rgb_psfs(optics::imaging_psf_stack(sim, h, nullptr), sensor.omega);
+  auto wiener = [&](const torch::Tensor& x) {
+    return std::make_pair(train::wiener_upsampling_cube(x, rgb_psf, cfg.model.preinverse_reg, w),
+                          train::constant_depth_map(x.narrow(1, 0, 1), median));
+  };
+  const train::EvalResult rw = train::evaluate(sim, sensor, h, wiener, cfg, "test", (root / "eval_w").string(), median);
+  for (const auto& m : rw.scenes) {
+    CHECK(m.hs_psnr_db == m.baseline_wiener_hs_psnr_db);
+    CHECK(m.hs_ssim == m.baseline_wiener_hs_ssim);
+    CHECK(m.baseline_wiener_hs_psnr_db != m.baseline_upsampling_hs_psnr_db);
+  }
   // metrics.json carries the contract's baseline keys, mean and per scene.
   const Json j = Json::parse(std::ifstream(root / "eval" / "metrics.json"));
   for (const char* k : {"baseline_constant_depth_rmse_m", "baseline_constant_depth_mae_m", "baseline_upsampling_hs_psnr_db",
-                        "baseline_upsampling_hs_ssim"}) {
+                        "baseline_upsampling_hs_ssim", "baseline_wiener_hs_psnr_db", "baseline_wiener_hs_ssim"}) {
     CHECK(j.contains(k));
     CHECK(j["scenes"][0].contains(k));
   }

@@ -120,6 +120,8 @@ TEST_CASE("export: a network with the Wiener pre-inversion exports with its PSFs
   torch::manual_seed(9);
   model::NetOptions o;
   o.bands = 4, o.base_width = 8, o.levels = 2, o.norm = "group", o.preinverse_layers = 3, o.preinverse_reg = 0.02;
+  o.residual_preinverse = GENERATE(false, true);  // the cube's residual on the image or on the deconvolutions
+  INFO("residual_preinverse " << o.residual_preinverse);
   model::HsdNet net(o, torch::rand({4, 3}));
   net->eval();
   CHECK_THROWS_AS(model::export_torchscript(net, {{400e-9, 450e-9, 500e-9, 550e-9}, {}, {}}), InputError);  // no PSFs yet

@@ -10,8 +10,10 @@
 
 #include "common/error.h"
 #include "helpers.h"
+#include "model/spectral_upsampling.h"
 #include "model/unet.h"
 #include "model/wiener_preinverse.h"
+#include "train/baselines.h"
 #include "train/trainer.h"
 
 using namespace hsd;
@@ -38,11 +40,11 @@ torch::Tensor blur(const torch::Tensor& x, const torch::Tensor& psf_cpp) {
   return F::conv2d(xp, psf_cpp.flip({-2, -1}).unsqueeze(1), F::Conv2dFuncOptions().groups(C));
 }
 
-Config tiny_wiener() {
+Config tiny_wiener(const std::string& residual = "image") {
   return load_config(test::source_path("configs/tiny.json"),
                      {"data.root=\"unused_no_data_is_loaded\"", "model.base_width=4", "model.levels=2",
                       "train.batch_size=2", "train.warmup_steps=0", "train.decay=none", "data.patch_size_px=16",
-                      "train.lr_net=0.003", "model.preinverse=\"wiener\""});
+                      "train.lr_net=0.003", "model.preinverse=\"wiener\"", "model.residual=\"" + residual + "\""});
 }
 
 train::Batch tiny_batch(int64_t L) {
@@ -69,6 +71,43 @@ TEST_CASE("preinverse: a delta PSF returns the image over 1 + rho in every layer
   REQUIRE(y.sizes() == c10::IntArrayRef{2, 6, 13, 17});
   CHECK((y.narrow(1, 0, 3) - x / (1 + rho)).abs().max().item<double>() < 1e-12);
   CHECK((y.narrow(1, 3, 3) - x / (1 + rho)).abs().max().item<double>() < 1e-12);
+}
+
+TEST_CASE("preinverse: the residual base is the layers' mean deconvolution, upsampled; with delta PSFs the image's over 1 + rho",
+          "[preinverse][baselines]") {
+  torch::manual_seed(6);
+  const torch::Tensor x = torch::rand({2, 3, 12, 10});
+  const torch::Tensor w = torch::rand({4, 3});
+  torch::Tensor delta = torch::zeros({3, 3, 5, 5});
+  delta.select(2, 2).select(2, 2).fill_(1.0);
+  const double rho = 0.25;
+  const torch::Tensor base = train::wiener_upsampling_cube(x, delta, rho, w);
+  REQUIRE(base.sizes() == c10::IntArrayRef{2, 4, 12, 10});
+  CHECK((base - model::spectral_upsample(w, x) / (1 + rho)).abs().max().item<double>() < 1e-5);
+  // Layer mean by hand: [B, K*C, H, W] with layer k filled with k + c/10.
+  torch::Tensor p = torch::empty({1, 6, 2, 2});
+  for (int k = 0; k < 2; ++k)
+    for (int c = 0; c < 3; ++c) p[0][3 * k + c].fill_(k + c / 10.0);
+  const torch::Tensor m = model::preinverse_layer_mean(p, 2);
+  REQUIRE(m.sizes() == c10::IntArrayRef{1, 3, 2, 2});
+  for (int c = 0; c < 3; ++c) CHECK(m[0][c][1][1].item<double>() == Approx(0.5 + c / 10.0));
+  CHECK_THROWS(model::preinverse_layer_mean(p, 4));  // 6 channels are not 4 layers of C
+  // A network with the residual on the deconvolutions and its heads at the
+  // baselines answers with exactly this baseline; without the pre-inversion it refuses.
+  model::NetOptions o;
+  o.bands = 4, o.base_width = 4, o.levels = 2, o.norm = "group", o.preinverse_layers = 2, o.preinverse_reg = 0.01;
+  o.residual_preinverse = true;
+  model::HsdNet net(o, w);
+  const torch::Tensor psf = gaussian_psfs({1.0, 2.5}, 3, 9, torch::kFloat32);
+  net->set_preinverse_psf(psf);
+  net->start_at_baselines(1.0);
+  torch::NoGradGuard ng;
+  const torch::Tensor y = torch::rand({2, 3, 20, 24});
+  const torch::Tensor expect = train::wiener_upsampling_cube(y, psf, 0.01, w);
+  CHECK((net->forward(y).hs - expect).abs().max().item<double>() < 1e-6);
+  CHECK((expect - model::spectral_upsample(w, y)).abs().max().item<double>() > 1e-3);  // not the image's upsampling
+  o.preinverse_layers = 0;
+  CHECK_THROWS(model::HsdNet(o, w));
 }
 
 TEST_CASE("preinverse: the camera's RGB PSF is the response-weighted band mean", "[preinverse]") {
@@ -154,7 +193,8 @@ TEST_CASE("preinverse: the network takes the deconvolutions beside the image", "
 }
 
 TEST_CASE("preinverse: training with it lowers the loss, reaches the DOE, profiles exactly and resumes", "[train][preinverse]") {
-  const Config cfg = tiny_wiener();
+  const Config cfg = tiny_wiener(GENERATE(std::string("image"), std::string("preinverse")));
+  INFO("model.residual " << cfg.model.residual);
   train::Trainer a(cfg), b(cfg);
   const int64_t L = int64_t(a.psf().spec().wavelengths_m.size()), Z = int64_t(a.psf().spec().depths_m.size());
   REQUIRE(a.net()->options().preinverse_layers == Z);

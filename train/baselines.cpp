@@ -6,6 +6,8 @@
 #include <torch/torch.h>
 
 #include "common/error.h"
+#include "model/spectral_upsampling.h"
+#include "model/wiener_preinverse.h"
 
 namespace hsd::train {
 
@@ -38,6 +40,12 @@ double effective_resolution_px(const std::vector<int64_t>& windows, const std::v
       return std::exp(std::log(double(windows[i - 1])) + t * (std::log(double(windows[i])) - std::log(double(windows[i - 1]))));
     }
   return std::numeric_limits<double>::infinity();
+}
+
+torch::Tensor wiener_upsampling_cube(const torch::Tensor& image, const torch::Tensor& rgb_psf, double reg,
+                                     const torch::Tensor& upsampling_weights) {
+  const torch::Tensor x = model::wiener_preinverse(image, rgb_psf, reg);
+  return model::spectral_upsample(upsampling_weights, model::preinverse_layer_mean(x, rgb_psf.size(0)));
 }
 
 }  // namespace hsd::train

@@ -6,6 +6,10 @@
 //   upsampling: the spectral-upsampling cube of the sensor image
 //     (model/spectral_upsampling.h), the network's residual input without the
 //     network: what the U-Net adds is the difference from it.
+//   Wiener: the spectral upsampling of the mean over the depth layers of the
+//     sensor image's Wiener deconvolutions (model/wiener_preinverse.h) with
+//     the imaging DOE's RGB PSFs: a sharper cube with no learning, and the
+//     network's residual input when model.residual = "preinverse".
 // Beside them, a reference that uses the truth (not a baseline a model could
 // be, but a ruler for depth): the resolution oracle (data/depth_structure.h);
 // the w at which its RMSE equals a model's is that model's effective depth
@@ -22,6 +26,12 @@ namespace hsd::train {
 // Median of 1/depth over the valid pixels (mask > 0.5) of the scenes [1/m];
 // InputError when no scene has a valid pixel.
 double median_inverse_depth(const std::vector<data::LoadedScene>& scenes);
+
+// The Wiener baseline's cube: image [B, C, H, W], rgb_psf [K, C, P, P]
+// (model::camera_rgb_psfs of the imaging PSFs), reg ρ > 0, upsampling_weights
+// [L, C] -> [B, L, H, W].
+torch::Tensor wiener_upsampling_cube(const torch::Tensor& image, const torch::Tensor& rgb_psf, double reg,
+                                     const torch::Tensor& upsampling_weights);
 
 // The constant-depth map: depth_m [.., H, W] of `like`'s shape, every value 1 / inv_depth [m].
 torch::Tensor constant_depth_map(const torch::Tensor& like, double inv_depth_per_m);

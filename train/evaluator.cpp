@@ -20,6 +20,7 @@
 #include "optics/psf_atlas.h"
 #include "optics/spectrum.h"
 #include "model/spectral_upsampling.h"
+#include "model/wiener_preinverse.h"
 #include "train/baselines.h"
 #include "train/metrics.h"
 #include "train/plot.h"
@@ -83,6 +84,8 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     log::warn("no constant-depth baseline: the checkpoint or model does not store the training split's median inverse "
               "depth (made by an earlier hsd); retrain, or evaluate with a checkpoint of this version");
   const torch::Tensor up_w = model::spectral_upsampling_weights(sensor.omega.cpu());
+  const torch::Tensor imaging_psf = optics::imaging_psf_stack(psf, h, fixed_psf).cpu();
+  const torch::Tensor rgb_psf = model::camera_rgb_psfs(imaging_psf, sensor.omega.cpu());
   int cc_count = 0;
   double cc_sum = 0.0;
   log::Progress progress("evaluate", long(scenes.size()));
@@ -117,6 +120,9 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     const torch::Tensor up = model::spectral_upsample(up_w, img.image.cpu())[0];
     m.baseline_upsampling_hs_psnr_db = psnr_db(up, radiance, m.data_range, valid);
     m.baseline_upsampling_hs_ssim = ssim(up, radiance, m.data_range, valid);
+    const torch::Tensor wup = wiener_upsampling_cube(img.image.cpu(), rgb_psf, cfg.model.preinverse_reg, up_w)[0];
+    m.baseline_wiener_hs_psnr_db = psnr_db(wup, radiance, m.data_range, valid);
+    m.baseline_wiener_hs_ssim = ssim(wup, radiance, m.data_range, valid);
     if (constant_known) {
       const DepthErrors dc = depth_errors(constant_depth_map(sc.depth_m, baseline_inv_depth), sc.depth_m, valid);
       m.baseline_constant_depth_rmse_m = dc.rmse_m, m.baseline_constant_depth_mae_m = dc.mae_m;
@@ -188,6 +194,8 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     a.lum_ssim += m.lum_ssim / n, a.depth_rmse_m += m.depth_rmse_m / n, a.depth_mae_m += m.depth_mae_m / n;
     a.baseline_upsampling_hs_psnr_db += m.baseline_upsampling_hs_psnr_db / n;
     a.baseline_upsampling_hs_ssim += m.baseline_upsampling_hs_ssim / n;
+    a.baseline_wiener_hs_psnr_db += m.baseline_wiener_hs_psnr_db / n;
+    a.baseline_wiener_hs_ssim += m.baseline_wiener_hs_ssim / n;
   }
   a.oracle_depth_rmse_m.assign(kOracleWindowsPx.size(), 0.0);
   for (const auto& m : res.scenes)
@@ -200,7 +208,7 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
           a.baseline_constant_depth_mae_m += m.baseline_constant_depth_mae_m / n;
   }
   a.colorchecker_rmse = cc_count > 0 ? cc_sum / double(cc_count) : -1.0;
-  optics::write_psf_atlas(out_dir + "/psf_atlas.png", optics::imaging_psf_stack(psf, h, fixed_psf).cpu(),
+  optics::write_psf_atlas(out_dir + "/psf_atlas.png", imaging_psf,
                           psf.spec().wavelengths_m, psf.spec().depths_m);
   // metrics.json (CONTRACT.md keys) and report.md.
   auto row = [](const SceneMetrics& m) {
@@ -210,6 +218,8 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     if (m.colorchecker_rmse >= 0) j["colorchecker_reflectance_rmse"] = m.colorchecker_rmse;
     j["baseline_upsampling_hs_psnr_db"] = m.baseline_upsampling_hs_psnr_db;
     j["baseline_upsampling_hs_ssim"] = m.baseline_upsampling_hs_ssim;
+    j["baseline_wiener_hs_psnr_db"] = m.baseline_wiener_hs_psnr_db;
+    j["baseline_wiener_hs_ssim"] = m.baseline_wiener_hs_ssim;
     if (std::isfinite(m.baseline_constant_depth_rmse_m)) {
       j["baseline_constant_depth_rmse_m"] = m.baseline_constant_depth_rmse_m;
       j["baseline_constant_depth_mae_m"] = m.baseline_constant_depth_mae_m;
@@ -230,15 +240,17 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
   j["notes"] = "PSNR and SSIM data range: each scene's largest true radiance (luminance: its largest true Y); "
                "scene radiance = reflectance x " + cfg.sensor.illuminant + " (band means, max 1); SSIM per Wang et al. 2004 "
                "(11x11 Gaussian window, sigma 1.5) per band, averaged; every metric over the scene's valid pixels; "
-               "baselines on the same pixels: the spectral-upsampling cube of the same sensor image (no network) and "
-               "one constant depth (the training split's median inverse depth); reference_oracle_depth_rmse_m: the "
+               "baselines on the same pixels: the spectral-upsampling cube of the same sensor image (no network), the "
+               "same upsampling of the mean over the depth layers of its Wiener deconvolutions (baseline_wiener_*, "
+               "rho = model.preinverse_reg, no network) and one constant depth (the training split's median inverse depth); reference_oracle_depth_rmse_m: the "
                "resolution oracle (the true inverse depth averaged over a w x w box of valid pixels, w in px), a ruler "
                "for how fine the scenes' depth is, not a baseline; depth_effective_resolution_px: the box whose oracle "
                "scores the model's depth RMSE (mean over scenes)";
   write_text_file(out_dir + "/metrics.json", j.dump(2) + "\n");
   std::string md = "# Evaluation (" + split + " split)\n\n" + j["notes"].get<std::string>() + ".\n\n" +
-                   "| scene | HS PSNR [dB] | HS SSIM | lum PSNR [dB] | lum SSIM | depth RMSE [m] | depth MAE [m] | ColorChecker RMSE |\n"
-                   "|---|---|---|---|---|---|---|---|\n";
+                   "| scene | HS PSNR [dB] | HS SSIM | Wiener baseline PSNR [dB] / SSIM | lum PSNR [dB] | lum SSIM | depth RMSE [m] | "
+                   "depth MAE [m] | ColorChecker RMSE |\n"
+                   "|---|---|---|---|---|---|---|---|---|\n";
   char buf[400];
   std::vector<SceneMetrics> all = res.scenes;
   all.push_back(a);
@@ -249,9 +261,10 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     return std::string(c);
   };
   for (const auto& m : all) {
-    std::snprintf(buf, sizeof buf, "| %s | %.2f (%.2f) | %.4f (%.4f) | %.2f | %.4f | %s | %s | %s |\n",
+    std::snprintf(buf, sizeof buf, "| %s | %.2f (%.2f) | %.4f (%.4f) | %.2f / %.4f | %.2f | %.4f | %s | %s | %s |\n",
                   m.file == "mean" ? "**mean**" : m.file.c_str(), m.hs_psnr_db, m.baseline_upsampling_hs_psnr_db,
-                  m.hs_ssim, m.baseline_upsampling_hs_ssim, m.lum_psnr_db, m.lum_ssim,
+                  m.hs_ssim, m.baseline_upsampling_hs_ssim, m.baseline_wiener_hs_psnr_db, m.baseline_wiener_hs_ssim,
+                  m.lum_psnr_db, m.lum_ssim,
                   depth_cell(m.depth_rmse_m, m.baseline_constant_depth_rmse_m).c_str(),
                   depth_cell(m.depth_mae_m, m.baseline_constant_depth_mae_m).c_str(),
                   m.colorchecker_rmse >= 0 ? c10::str(m.colorchecker_rmse).c_str() : "");

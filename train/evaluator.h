@@ -25,6 +25,7 @@ struct SceneMetrics {
   // Baselines on the same pixels (train/baselines.h); NaN when unknown.
   double baseline_constant_depth_rmse_m = std::nan(""), baseline_constant_depth_mae_m = std::nan("");
   double baseline_upsampling_hs_psnr_db = 0, baseline_upsampling_hs_ssim = 0;
+  double baseline_wiener_hs_psnr_db = 0, baseline_wiener_hs_ssim = 0;  // Wiener deconvolution + upsampling
   // The resolution oracle (baselines.h) on the same pixels, one RMSE [m] per
   // window of kOracleWindowsPx; on the mean, the window whose oracle RMSE
   // equals the model's (its effective depth resolution, px; +inf: coarser than all).

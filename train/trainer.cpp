@@ -64,6 +64,7 @@ model::NetOptions net_options(const Config& cfg) {
   o.depth_max_m = 1.0 / std::max(1.0 / far - m, 0.5 / far);
   o.preinverse_layers = cfg.model.preinverse == "wiener" ? int64_t(d.size()) : 0;
   o.preinverse_reg = cfg.model.preinverse_reg;
+  o.residual_preinverse = cfg.model.residual == "preinverse";
   return o;
 }
 
@@ -406,7 +407,8 @@ ValStats Trainer::validate() {
   // This rank's share [lo, hi) of the validation patches (all of them alone).
   const int64_t n_all = val_.radiance.size(0), B = cfg_.train.batch_size;
   const int64_t lo = n_all * rank_ / world_, hi = n_all * (rank_ + 1) / world_;
-  double loss = 0, se = 0, abs_z = 0, se_z = 0, count = 0, px = 0, se_up = 0, abs_c = 0, se_c = 0, sat = 0;
+  double loss = 0, se = 0, abs_z = 0, se_z = 0, count = 0, px = 0, se_up = 0, abs_c = 0, se_c = 0, sat = 0, se_w = 0;
+  const int64_t K = net_->options().preinverse_layers;
   const double c_inv = std::isfinite(baseline_inv_depth_) ? baseline_inv_depth_ : 1.0;
   const double peak = centre(val_.radiance).max().item<double>();
   for (int64_t i = lo; i < hi; i += B) {
@@ -418,6 +420,10 @@ ValStats Trainer::validate() {
     const torch::Tensor I = centre(Iw), Z = centre(Zw), J = centre(img.image);
     const model::NetOutput out = reconstruct_window(img.image);
     se_up += (model::spectral_upsample(net_->upsampling_weights(), J) - I).pow(2).sum().item<double>();
+    if (K > 0) {  // the Wiener baseline: the layers' mean deconvolution of the window, upsampled
+      const torch::Tensor wm = model::preinverse_layer_mean(centre(net_->preinverse(img.image)), K);
+      se_w += (model::spectral_upsample(net_->upsampling_weights(), wm) - I).pow(2).sum().item<double>();
+    }
     const torch::Tensor Zc = constant_depth_map(Z, c_inv);
     abs_c += (Zc - Z).abs().sum().item<double>();
     se_c += (Zc - Z).pow(2).sum().item<double>();
@@ -431,9 +437,9 @@ ValStats Trainer::validate() {
   }
   net_->train();
   if (group_) {
-    const auto s = group_->sum({loss, se, count, abs_z, se_z, px, se_up, abs_c, se_c, sat}, "validation sums");
+    const auto s = group_->sum({loss, se, count, abs_z, se_z, px, se_up, abs_c, se_c, sat, se_w}, "validation sums");
     loss = s[0], se = s[1], count = s[2], abs_z = s[3], se_z = s[4], px = s[5];
-    se_up = s[6], abs_c = s[7], se_c = s[8], sat = s[9];
+    se_up = s[6], abs_c = s[7], se_c = s[8], sat = s[9], se_w = s[10];
   }
   ValStats v;
   v.loss = loss / double(n_all);
@@ -442,6 +448,7 @@ ValStats Trainer::validate() {
   v.depth_rmse_m = std::sqrt(se_z / px);
   v.depth_mae_m = abs_z / px;
   v.baseline_hs_psnr_db = 10.0 * std::log10(peak * peak / std::max(se_up / count, 1e-30));
+  if (K > 0) v.baseline_wiener_hs_psnr_db = 10.0 * std::log10(peak * peak / std::max(se_w / count, 1e-30));
   v.baseline_depth_rmse_m = std::sqrt(se_c / px);
   v.baseline_depth_mae_m = abs_c / px;
   v.depth_saturated = sat / px;
@@ -587,7 +594,8 @@ const std::vector<std::string>& Trainer::metrics_columns() {
   static const std::vector<std::string> columns{
       "step",     "wall_s",         "train_loss",       "val_loss",         "train_hs_l1",
       "train_depth_l1", "lr_net",   "lr_doe_m",         "val_hs_psnr_db",   "val_depth_rmse_m",
-      "val_depth_mae_m", "val_baseline_hs_psnr_db", "val_baseline_depth_rmse_m", "val_depth_saturated"};
+      "val_depth_mae_m", "val_baseline_hs_psnr_db", "val_baseline_depth_rmse_m", "val_depth_saturated",
+      "val_baseline_wiener_hs_psnr_db"};
   return columns;
 }
 
@@ -644,7 +652,7 @@ void Trainer::run(const std::string& out_dir, bool resume) {
     std::string text;
     for (size_t i = 0; i < columns.size(); ++i) text += (i ? "," : "") + columns[i];
     text += "\n";
-    std::vector<double> xs, tr, vx, vl, psnr, base_psnr, rmse, base_rmse;
+    std::vector<double> xs, tr, vx, vl, psnr, base_psnr, rmse, base_rmse, wx, wiener_psnr;
     for (const auto& c : rows) {
       for (size_t i = 0; i < c.size(); ++i) text += (i ? "," : "") + c[i];
       text += "\n";
@@ -657,6 +665,8 @@ void Trainer::run(const std::string& out_dir, bool resume) {
       base_psnr.push_back(num(c[col("val_baseline_hs_psnr_db")]));
       rmse.push_back(num(c[col("val_depth_rmse_m")]));
       base_rmse.push_back(num(c[col("val_baseline_depth_rmse_m")]));
+      if (!c[col("val_baseline_wiener_hs_psnr_db")].empty())
+        wx.push_back(vx.back()), wiener_psnr.push_back(num(c[col("val_baseline_wiener_hs_psnr_db")]));
     }
     write_text_file(csv, text);
     write_line_plot(out_dir + "/curves.png", "loss (L1 cube + weighted depth terms)", "step",
@@ -664,9 +674,9 @@ void Trainer::run(const std::string& out_dir, bool resume) {
     if (vx.empty()) return;
     // The baselines as lines beside the model's curves: a curve that does not
     // leave its baseline has learned nothing.
-    write_line_plot(out_dir + "/val_psnr.png", "validation hyperspectral PSNR [dB]", "step",
-                    {{"model", vx, psnr, {30, 140, 30}}, {"upsampling alone", vx, base_psnr, {150, 150, 150}}},
-                    false);
+    std::vector<Series> hs_lines{{"model", vx, psnr, {30, 140, 30}}, {"upsampling alone", vx, base_psnr, {150, 150, 150}}};
+    if (!wx.empty()) hs_lines.push_back({"Wiener + upsampling", wx, wiener_psnr, {90, 90, 200}});
+    write_line_plot(out_dir + "/val_psnr.png", "validation hyperspectral PSNR [dB]", "step", hs_lines, false);
     write_line_plot(out_dir + "/val_depth.png", "validation depth RMSE [m]", "step",
                     {{"model", vx, rmse, {200, 60, 30}}, {"constant depth", vx, base_rmse, {150, 150, 150}}},
                     false);
@@ -679,13 +689,17 @@ void Trainer::run(const std::string& out_dir, bool resume) {
     row[col("val_baseline_hs_psnr_db")] = fmt("%.4f", v.baseline_hs_psnr_db);
     row[col("val_baseline_depth_rmse_m")] = fmt("%.5f", v.baseline_depth_rmse_m);
     row[col("val_depth_saturated")] = fmt("%.4f", v.depth_saturated);
+    if (std::isfinite(v.baseline_wiener_hs_psnr_db))
+      row[col("val_baseline_wiener_hs_psnr_db")] = fmt("%.4f", v.baseline_wiener_hs_psnr_db);
   };
   auto log_val = [&](int64_t step, const ValStats& v) {
-    char buf[320];
+    char buf[400], wb[64] = "";
+    if (std::isfinite(v.baseline_wiener_hs_psnr_db))
+      std::snprintf(wb, sizeof wb, "; Wiener + upsampling %.2f dB", v.baseline_wiener_hs_psnr_db);
     std::snprintf(buf, sizeof buf,
-                  "validation at step %lld: HS PSNR %.2f dB (upsampling alone %.2f dB); depth RMSE %.3f m (constant "
+                  "validation at step %lld: HS PSNR %.2f dB (upsampling alone %.2f dB%s); depth RMSE %.3f m (constant "
                   "depth %.3f m), MAE %.3f m (%.3f m); depth sigmoid saturated at %.1f%% of pixels",
-                  (long long)step, v.hs_psnr_db, v.baseline_hs_psnr_db, v.depth_rmse_m, v.baseline_depth_rmse_m,
+                  (long long)step, v.hs_psnr_db, v.baseline_hs_psnr_db, wb, v.depth_rmse_m, v.baseline_depth_rmse_m,
                   v.depth_mae_m, v.baseline_depth_mae_m, 100.0 * v.depth_saturated);
     if (writer) log::info(buf);
   };

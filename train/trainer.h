@@ -62,6 +62,9 @@ struct ValStats {
   // Baselines on the same patches and pixels (train/baselines.h): the
   // upsampling cube of the same sensor image, and the constant depth.
   double baseline_hs_psnr_db = 0, baseline_depth_rmse_m = 0, baseline_depth_mae_m = 0;
+  // With the pre-inversion on: the Wiener baseline (baselines.h) on the same
+  // patches; NaN when the network has no pre-inversion.
+  double baseline_wiener_hs_psnr_db = std::nan("");
   // Fraction of pixels whose depth sigmoid is within 0.02 of 0 or 1 (saturated).
   double depth_saturated = 0;
 };
