@@ -93,9 +93,15 @@ TEST_CASE("precision: a bfloat16 network is the float32 one up to rounding and e
     // The whole gradient (what Adam and clipping see) moves by no more than
     // twice that (measured: 0.13 against 0.09 with group norm, 0.16 against
     // 0.11 with batch norm, 0.0025 against 0.0020 without norms).
+    // Without native bfloat16 (an AVX2-only EPYC) oneDNN's emulated kernels
+    // also round partial sums: measured 0.047 against the control's 0.002
+    // without norms (0.14 / 0.15 against 0.09 / 0.11 with them), where
+    // train.precision = "auto" picks float32; the bound then allows that
+    // accumulation and still fails a wrong gradient (error ~1).
+    const double slack = train::cpu_has_native_bf16() ? 0.005 : 0.1;
     const double e = rel(torch::cat(gh), torch::cat(gf));
     INFO("relative gradient error " << e);
-    CHECK(e < 2.0 * e0 + 0.005);
+    CHECK(e < 2.0 * e0 + slack);
   }
 }
 

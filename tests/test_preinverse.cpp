@@ -73,7 +73,7 @@ TEST_CASE("preinverse: a delta PSF returns the image over 1 + rho in every layer
   CHECK((y.narrow(1, 3, 3) - x / (1 + rho)).abs().max().item<double>() < 1e-12);
 }
 
-TEST_CASE("preinverse: the residual base is the layers' mean deconvolution, upsampled; with delta PSFs the image's over 1 + rho",
+TEST_CASE("preinverse: the residual base is the layers' mean deconvolution, upsampled, with delta PSFs the image over 1 + rho",
           "[preinverse][baselines]") {
   torch::manual_seed(6);
   const torch::Tensor x = torch::rand({2, 3, 12, 10});
