@@ -418,10 +418,12 @@ ValStats Trainer::validate() {
         optics::simulate_sensor(*psf_, sensor_, h, Iw, Zw, image_generators(mix(cfg_.seed, kValSeed + 1), i, b),
                                 optics::LeaveOut(), fixed_psf_);
     const torch::Tensor I = centre(Iw), Z = centre(Zw), J = centre(img.image);
-    const model::NetOutput out = reconstruct_window(img.image);
+    // The window's deconvolutions once: the network's input and the Wiener baseline (reconstruct_window's work).
+    const torch::Tensor pre = K > 0 ? centre(net_->preinverse(img.image)) : torch::Tensor();
+    const model::NetOutput out = K > 0 ? net_->forward(J, pre) : net_->forward(J);
     se_up += (model::spectral_upsample(net_->upsampling_weights(), J) - I).pow(2).sum().item<double>();
     if (K > 0) {  // the Wiener baseline: the layers' mean deconvolution of the window, upsampled
-      const torch::Tensor wm = model::preinverse_layer_mean(centre(net_->preinverse(img.image)), K);
+      const torch::Tensor wm = model::preinverse_layer_mean(pre, K);
       se_w += (model::spectral_upsample(net_->upsampling_weights(), wm) - I).pow(2).sum().item<double>();
     }
     const torch::Tensor Zc = constant_depth_map(Z, c_inv);
