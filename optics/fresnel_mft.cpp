@@ -244,25 +244,38 @@ struct MftIntensityDepthBasis : public torch::autograd::Function<MftIntensityDep
 }  // namespace
 
 LowRankKernel factor_tilt_kernel(const torch::Tensor& tilt, double rel_tol, c10::ScalarType complex_dtype) {
-  // Truncated SVD T ≈ U_r S_r V_rᴴ through the small Gram matrix G = T Tᴴ
-  // [M, M] (M = P·n rows ≤ N columns): G = U S² Uᴴ (Hermitian eigenproblem,
-  // float64), then left = U_r S_r and right = S_r⁻¹ U_rᴴ T = V_rᴴ, so
-  // left·right = U_r U_rᴴ T, the exact projection onto the kept subspace.
+  // Truncated SVD T ≈ U_r S_r V_rᴴ [M, N] through the smaller Gram matrix,
+  // a Hermitian eigenproblem in float64:
+  //   M ≤ N: G = T Tᴴ [M, M] = U S² Uᴴ, left = U_r S_r, right = S_r⁻¹ U_rᴴ T = V_rᴴ;
+  //   M > N: G = Tᴴ T [N, N] = V S² Vᴴ, right = V_rᴴ, left = T V_r = U_r S_r;
+  // either way left·right is the exact projection onto the kept subspace.
   // Squaring in G costs nothing at the cut: σ_r/σ_0 ≥ rel_tol ≥ 1e-7 keeps
   // σ² ≥ 1e-14 σ_0², above float64's rounding of G (~1e-16 σ_0²). Several
-  // times faster than an SVD of T, and a scene pays it once per band it uses.
+  // times faster than an SVD of T, and it does not fail where LAPACK's complex
+  // divide-and-conquer SVD does (large windows: M = P·n > N rows, seen at a
+  // 253-px window on a 256-sample DOE). An SVD only for cuts below 1e-7.
   const torch::Tensor T = tilt.to(torch::kComplexDouble);
-  torch::Tensor U, S, Vh;  // Vh only from an SVD
-  if (T.size(0) > T.size(1) || rel_tol < 1e-7) {  // the Gram route needs M ≤ N and a cut above its rounding
+  const int64_t M = T.size(0), N = T.size(1);
+  torch::Tensor S, U, V;  // descending singular values; left (M ≤ N) or right (M > N) singular vectors
+  torch::Tensor Vh;       // from an SVD
+  if (rel_tol < 1e-7) {
     std::tie(U, S, Vh) = torch::linalg_svd(T, /*full_matrices=*/false);
   } else {
-    const auto eig = torch::linalg_eigh(torch::mm(T, T.conj().transpose(0, 1)));  // ascending eigenvalues
+    const torch::Tensor G = M <= N ? torch::mm(T, T.conj().transpose(0, 1)) : torch::mm(T.conj().transpose(0, 1), T);
+    const auto eig = torch::linalg_eigh(G);  // ascending eigenvalues
     S = std::get<0>(eig).flip(0).clamp_min(0.0).sqrt();
-    U = std::get<1>(eig).flip(1);
+    (M <= N ? U : V) = std::get<1>(eig).flip(1);
   }
   const int64_t r = std::max<int64_t>(1, (S > rel_tol * S[0].item<double>()).sum().item<int64_t>());
-  const torch::Tensor Ur = U.narrow(1, 0, r), Sr = S.narrow(0, 0, r).to(torch::kComplexDouble);
+  const torch::Tensor Sr = S.narrow(0, 0, r).to(torch::kComplexDouble);
   LowRankKernel k;
+  if (V.defined()) {
+    const torch::Tensor Vr = V.narrow(1, 0, r);
+    k.left = torch::mm(T, Vr).to(complex_dtype).contiguous();
+    k.right = Vr.conj().transpose(0, 1).to(complex_dtype).contiguous();
+    return k;
+  }
+  const torch::Tensor Ur = U.narrow(1, 0, r);
   k.left = (Ur * Sr.view({1, r})).to(complex_dtype).contiguous();
   k.right = (Vh.defined() ? Vh.narrow(0, 0, r) : torch::mm(Ur.conj().transpose(0, 1), T) / Sr.view({r, 1}))
                 .to(complex_dtype)
