@@ -14,9 +14,10 @@
 #include "common/log.h"
 #include "data/manifest.h"
 #include "model/torchscript_export.h"
-#include "optics/all_in_focus.h"
+#include "optics/psf_source.h"
 #include "optics/doe.h"
 #include "optics/psf.h"
+#include "optics/psf_file.h"
 #include "optics/sensor.h"
 #include "train/evaluator.h"
 #include "train/trainer.h"
@@ -44,13 +45,19 @@ int run(const AppArgs& args) {
     input_error("--split", "expected train, val, test or all, got \"" + split + "\"");
   make_dirs(args.out_dir);
   check_output_paths({args.out_dir + "/metrics.json", args.out_dir + "/report.md", args.out_dir + "/config.json"});
+  optics::PsfProvider camera;  // --camera-psf: the scenes imaged through another stack
+  if (args.has("--camera-psf")) {
+    const std::string f = args.option("--camera-psf", "");
+    camera = optics::fixed_psf_provider(optics::psf_for_config(optics::read_psf_file(f), cfg.optics, f, "--camera-psf", torch::kCPU));
+    log::info("imaging through the camera PSFs of " + f + "; the reconstructor keeps the config's");
+  }
   train::EvalResult r;
   if (!ckpt.empty()) {
     if (!std::filesystem::is_regular_file(ckpt)) input_error(ckpt, "no such checkpoint file (--checkpoint)");
     setup_threads(cfg.threads);
     train::Trainer trainer(cfg);
     trainer.load_checkpoint(ckpt);
-    r = train::evaluate(trainer, cfg, split, args.out_dir);
+    r = train::evaluate(trainer, cfg, split, args.out_dir, camera);
   } else {
     // An exported model: the DOE it expects travels beside it (doe_height.pt), or --doe.
     torch::jit::Module m = model::load_reconstructor(model_path);  // the model first: it is what the user named
@@ -71,8 +78,9 @@ int run(const AppArgs& args) {
         input_error(model_path, "attribute baseline_inv_depth_per_m must be a finite positive number");
       inv = v.toDouble();
     }
-    r = train::evaluate(sim, sensor, h, net, cfg, split, args.out_dir, inv,
-                        optics::psf_source_provider(cfg.optics, material, torch::kCPU));
+    const optics::PsfProvider own = optics::psf_source_provider(cfg.optics, material, torch::kCPU);
+    const torch::Tensor model_psf = camera ? optics::imaging_psf_stack(sim, h, own) : torch::Tensor();
+    r = train::evaluate(sim, sensor, h, net, cfg, split, args.out_dir, inv, camera ? camera : own, model_psf);
   }
   write_resolved_config(cfg, args.out_dir);
   char buf[500];
@@ -107,6 +115,6 @@ int run(const AppArgs& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  AppSpec spec{"hsd_eval", kUsage, {"--checkpoint", "--model", "--split", "--doe", "--data"}, {}, true, true};
+  AppSpec spec{"hsd_eval", kUsage, {"--checkpoint", "--model", "--split", "--doe", "--data", "--camera-psf"}, {}, true, true};
   return run_app(spec, argc, argv, run);
 }

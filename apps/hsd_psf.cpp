@@ -14,6 +14,7 @@
 #include "optics/doe.h"
 #include "optics/psf.h"
 #include "optics/psf_atlas.h"
+#include "optics/psf_file.h"
 #include "optics/sampling_check.h"
 #include "optics/spectrum.h"
 #include "usage/hsd_psf.h"
@@ -116,7 +117,7 @@ int run(const AppArgs& args) {
   }
   auto f64 = [](const std::vector<double>& v) { return torch::tensor(v, torch::kFloat64); };
   auto scalar = [](double v) { return torch::tensor(v, torch::kFloat64); };
-  save_tensor_dict(args.out_dir + "/psf.pt",
+  optics::write_psf_file(args.out_dir + "/psf.pt",
                    {{"psf", out.psf.to(torch::kFloat32)},
                     {"energy_in_window", energy.to(torch::kFloat32)},
                     {"wavelengths_m", f64(spec.wavelengths_m)},
@@ -127,7 +128,8 @@ int run(const AppArgs& args) {
                     {"doe_pitch_m", scalar(spec.doe_pitch_m)},
                     {"height_map_m", height.to(torch::kFloat32)},
                     {"refractive_index", f64(spec.refractive_index)},
-                    {"camera_response", omega}});
+                    {"camera_response", omega}},
+                         "simulated");
   optics::write_psf_atlas(args.out_dir + "/psf_atlas.png", out.psf, spec.wavelengths_m, spec.depths_m);
   write_resolved_config(cfg, args.out_dir);
   log::info("wrote " + args.out_dir + "/psf.pt, psf_atlas.png, config.json");

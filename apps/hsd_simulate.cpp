@@ -16,6 +16,7 @@
 #include "optics/doe.h"
 #include "optics/psf.h"
 #include "optics/psf_atlas.h"
+#include "optics/psf_source.h"
 #include "optics/sensor.h"
 #include "optics/spectrum.h"
 #include "usage/hsd_simulate.h"
@@ -43,6 +44,9 @@ int run(const AppArgs& args) {
   // Other bands are resampled to the config's by band integration (with a warning).
   const data::SpectralScene scene =
       data::resample_scene_bands(data::read_scene_exr(scene_path), bands, cfg.optics.band_width_m(), scene_path);
+  const auto material = optics::Material::load(cfg.optics.material);
+  // optics.psf_source: the DOE's PSFs (nullptr), or a fixed stack (a PSF file, the all-in-focus control).
+  const optics::PsfProvider fixed = optics::psf_source_provider(cfg.optics, material, device);
   const double t_read = since();
   setup_threads(cfg.threads);  // inputs are checked: from here on, progress output
   make_dirs(args.out_dir);
@@ -60,17 +64,17 @@ int run(const AppArgs& args) {
   for (double z : cfg.optics.depths_m) far = std::max(far, z);
   const torch::Tensor depth = torch::where(scene.mask > 0.5, scene.depth_m, torch::full_like(scene.depth_m, far)).unsqueeze(0);
 
-  const auto material = optics::Material::load(cfg.optics.material);
   const optics::PsfSpec spec = optics::make_psf_spec(cfg.optics, material, device);
   const optics::PsfSimulator sim(spec);
   const optics::SensorModel model = optics::make_sensor_model(cfg.sensor, spec, cfg.optics.band_width_m());
   const torch::Tensor height = optics::make_doe(cfg.optics, material, cfg.seed, device).height().detach();
+  if (fixed) log::info("imaging through the fixed PSFs of optics.psf_source = " + cfg.optics.psf_source);
   auto gen = at::detail::createCPUGenerator(cfg.seed);
   const double t_setup = since();
 
   torch::NoGradGuard no_grad;
   const optics::SensorImage img =
-      optics::simulate_sensor(sim, model, height, radiance.to(device), depth.to(device), gen);
+      optics::simulate_sensor(sim, model, height, radiance.to(device), depth.to(device), gen, optics::LeaveOut(), fixed);
   std::vector<double> used_depths;
   std::string used;
   for (int64_t z : img.layers) {

@@ -78,6 +78,7 @@ int run(const AppArgs& args) {
   }
   train::Trainer trainer(cfg, group);
   if (resume) trainer.check_resume(args.out_dir);  // before the data: a bad checkpoint or metrics.csv is found first
+  else if (!cfg.train.init_checkpoint.empty()) trainer.start_from(cfg.train.init_checkpoint);
   trainer.attach_data();
   if (trainer.writes_outputs()) {
     make_dirs(args.out_dir);

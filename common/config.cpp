@@ -111,8 +111,9 @@ OpticsConfig parse_optics(const JsonReader& r) {
   o.spectral_samples = r.get_int("spectral_samples", o.spectral_samples);
   if (o.spectral_samples < 1 || o.spectral_samples > 9) r.fail("spectral_samples", "must be in [1, 9]");
   o.psf_source = r.get_string("psf_source", o.psf_source);
-  if (o.psf_source != "simulator" && o.psf_source != "all_in_focus")
-    r.fail("psf_source", "expected \"simulator\" or \"all_in_focus\", got \"" + o.psf_source + "\"");
+  if (o.psf_source != "simulator" && o.psf_source != "all_in_focus" && o.psf_source.rfind("file:", 0) != 0)
+    r.fail("psf_source", "expected \"simulator\", \"all_in_focus\" or \"file:PATH\", got \"" + o.psf_source + "\"");
+  if (o.psf_source == "file:") r.fail("psf_source", "\"file:\" needs a path to a psf.pt after the colon");
   o.energy_warn_threshold = r.get_number("energy_warn_threshold", o.energy_warn_threshold);
   if (!(o.energy_warn_threshold >= 0.0 && o.energy_warn_threshold <= 1.0))
     r.fail("energy_warn_threshold", "must be in [0, 1]");
@@ -380,6 +381,7 @@ Config parse_config(const Json& resolved) {
     T.clip_grad_norm = t->get_number("clip_grad_norm", T.clip_grad_norm);
     if (T.clip_grad_norm < 0.0) t->fail("clip_grad_norm", "must be >= 0 (0 = off)");
     T.freeze_doe = t->get_bool("freeze_doe", T.freeze_doe);
+    T.init_checkpoint = t->get_string("init_checkpoint", T.init_checkpoint);
     T.loss_alpha = t->get_number("loss_alpha", T.loss_alpha);
     T.loss_beta = t->get_number("loss_beta", T.loss_beta);
     T.loss_gamma = t->get_number("loss_gamma", T.loss_gamma);
@@ -407,6 +409,57 @@ Config parse_config(const Json& resolved) {
     D.split_psf = d->get_bool("split_psf", D.split_psf);
   }
   if (auto d = r.optional_child("data")) c.data = parse_data(*d);
+  if (auto f = r.optional_child("fabrication")) {
+    if (auto e = f->optional_child("error")) {
+      auto& E = c.fabrication.error;
+      E.height_scale_error = e->get_number("height_scale_error", E.height_scale_error);
+      if (!(E.height_scale_error > -0.5 && E.height_scale_error < 0.5)) e->fail("height_scale_error", "must be in (-0.5, 0.5)");
+      for (auto [k, v] : {std::pair<const char*, double*>{"roughness_rms_m", &E.roughness_rms_m},
+                          {"roughness_correlation_m", &E.roughness_correlation_m}, {"edge_blur_m", &E.edge_blur_m}}) {
+        *v = e->get_number(k, *v);
+        if (!(*v >= 0.0 && *v < 1e-3)) e->fail(k, "must be in [0, 1e-3) metres");
+      }
+    }
+  }
+  if (auto k = r.optional_child("calibration")) {
+    auto& K = c.calibration;
+    K.registration = k->get_string("registration", K.registration);
+    if (K.registration != "auto" && K.registration != "centroid" && K.registration != "axis")
+      k->fail("registration", "expected \"auto\", \"centroid\" or \"axis\", got \"" + K.registration + "\"");
+    K.background = k->get_string("background", K.background);
+    if (K.background != "auto" && K.background != "dark" && K.background != "ring")
+      k->fail("background", "expected \"auto\", \"dark\" or \"ring\", got \"" + K.background + "\"");
+    K.hot_pixel_sigma = k->get_number("hot_pixel_sigma", K.hot_pixel_sigma);
+    if (!(K.hot_pixel_sigma >= 3.0 && K.hot_pixel_sigma <= 1e6)) k->fail("hot_pixel_sigma", "must be in [3, 1e6]");
+    K.hot_pixel_ratio = k->get_number("hot_pixel_ratio", K.hot_pixel_ratio);
+    if (!(K.hot_pixel_ratio >= 1.5 && K.hot_pixel_ratio <= 1e6)) k->fail("hot_pixel_ratio", "must be in [1.5, 1e6]");
+    K.min_snr = k->get_number("min_snr", K.min_snr);
+    if (!(K.min_snr >= 1.0 && K.min_snr <= 1e9)) k->fail("min_snr", "must be in [1, 1e9]");
+    if (auto y = k->optional_child("synthetic")) {
+      auto& S = K.synthetic;
+      S.frame_px = y->get_int("frame_px", S.frame_px);
+      if (S.frame_px != 0 && (S.frame_px < c.optics.psf_size || S.frame_px > 4096))
+        y->fail("frame_px", "must be 0 (automatic) or in [optics.psf_size, 4096]");
+      S.peak_counts = y->get_number("peak_counts", S.peak_counts);
+      if (!(S.peak_counts >= 10.0 && S.peak_counts <= 60000.0)) y->fail("peak_counts", "must be in [10, 60000] counts");
+      for (auto [key, v] : {std::pair<const char*, double*>{"background_counts", &S.background_counts},
+                            {"dark_counts", &S.dark_counts}, {"read_noise_counts", &S.read_noise_counts}}) {
+        *v = y->get_number(key, *v);
+        if (!(*v >= 0.0 && *v <= 10000.0)) y->fail(key, "must be in [0, 10000] counts");
+      }
+      S.hot_pixels = y->get_int("hot_pixels", S.hot_pixels);
+      if (S.hot_pixels < 0 || S.hot_pixels > 10000) y->fail("hot_pixels", "must be in [0, 10000]");
+      S.exposures = y->get_int("exposures", S.exposures);
+      if (S.exposures < 1 || S.exposures > 64) y->fail("exposures", "must be in [1, 64]");
+      S.seed = y->get_int("seed", S.seed);
+      if (S.seed < 0) y->fail("seed", "must be >= 0");
+      if (y->has("axis_offset_px")) {
+        S.axis_offset_px = y->get_number_array("axis_offset_px");
+        if (S.axis_offset_px.size() != 2 || !(std::abs(S.axis_offset_px[0]) <= 10) || !(std::abs(S.axis_offset_px[1]) <= 10))
+          y->fail("axis_offset_px", "must be [row, col], each within 10 px of the frame centre");
+      }
+    }
+  }
   // The U-Net's bottom must keep a pixel of the patch, and batch norm needs
   // more than one value per channel there (batch x pixels).
   const int64_t bottom = c.data.patch_size_px >> c.model.levels;

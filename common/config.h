@@ -60,7 +60,10 @@ struct OpticsConfig {
   // Where the imaging PSFs come from: "simulator" (the DOE's, optics/psf.h) or
   // "all_in_focus" (the control with no optical cue, optics/all_in_focus.h: one
   // diffraction-limited in-focus PSF for every band and depth; the DOE is unused
-  // and the network alone is trained).
+  // and the network alone is trained), or "file:PATH" (a psf.pt, optics/psf_file.h:
+  // measured by hsd_calibrate or from another tool; its wavelengths, depths,
+  // pixel pitch and window must be the config's; the DOE is unused and the
+  // network alone is trained, e.g. fine-tuned from train.init_checkpoint).
   std::string psf_source = "simulator";
   DoeConfig doe;
 
@@ -151,6 +154,10 @@ struct TrainConfig {
   double min_lr_ratio = 0.05;
   double clip_grad_norm = 1.0;      // per parameter group; 0 = off
   bool freeze_doe = false;          // fixed-DOE ablations
+  // A training checkpoint whose network weights start this run (fine-tuning,
+  // e.g. on measured PSFs); "" = the network's own initialisation. Only the
+  // network is taken: the DOE, the optimizer state and the step start afresh.
+  std::string init_checkpoint;
   double loss_alpha = 1.0, loss_beta = 1e-2, loss_gamma = 1e-2;  // L1 cube, L1 inverse depth, TV of predicted inverse depth
   // The depth term's unit: "inverse_l1" (|1/Ẑ − 1/Z|, the paper) or
   // "metric_l1" (|Ẑ − Z| in metres, the unit the evaluation reports).
@@ -175,6 +182,51 @@ struct DistributedConfig {
   double bucket_mib = 25.0;  // gradients are summed in flat buckets of about this size (fewer, larger collectives)
   bool sync_batch_norm = true;  // batch statistics of the global batch (matches one process); false: per rank, as DDP
   bool split_psf = true;        // training PSFs computed once, shared out by bands (train/shared_psf.h); false: every rank all
+};
+
+// The errors a fab makes, applied to a DOE height map (optics/fabrication_error.h):
+// hsd_calibrate --make-captures images a DOE perturbed by them.
+struct FabricationErrorConfig {
+  double height_scale_error = 0.0;       // relative etch-depth error: h -> (1 + e) h
+  double roughness_rms_m = 0.0;          // random height error, RMS [m]
+  double roughness_correlation_m = 0.0;  // its correlation length (Gaussian σ) [m]; 0 = white (per DOE sample)
+  double edge_blur_m = 0.0;              // Gaussian σ of the height map's blur (edge rounding) [m]
+};
+
+struct FabricationConfig {
+  FabricationErrorConfig error;
+};
+
+// Synthetic point-source captures (hsd_calibrate --make-captures): what a lab
+// bench would record through the (perturbed) DOE, in 16-bit sensor counts.
+struct SyntheticCaptureConfig {
+  int64_t frame_px = 0;                // square frame [px]; 0 = 4 * optics.psf_size + 1
+  double peak_counts = 40000.0;        // exposure: the brightest pixel of each slice's PSF at this many counts
+  double background_counts = 200.0;    // stray light, counts per pixel (Poisson; in the dark frames too: they are taken with the source off)
+  double dark_counts = 100.0;          // dark level, counts per pixel (in the dark frame too)
+  double read_noise_counts = 3.0;      // Gaussian read noise σ [counts]
+  int64_t hot_pixels = 20;             // hot pixels per frame (the same pixels in every frame and the dark)
+  int64_t exposures = 4;               // frames per slice (and dark frames), averaged by the calibration
+  std::vector<double> axis_offset_px{0.37, -0.21};  // the optical axis from the frame centre, (row, col) [px]
+  int64_t seed = 0;                    // of the noise and hot pixels (the roughness follows the top-level seed)
+};
+
+// hsd_calibrate: measured PSFs from point-source captures (optics/psf_calibration.h).
+struct CalibrationConfig {
+  // "auto": register to captures.json's axis_px when it gives one, else to each
+  // slice's centroid; "centroid": every slice centred on its centroid
+  // (CONTRACT.md); "axis": every slice on axis_px (required).
+  std::string registration = "auto";
+  // The background under the PSF: "auto" ("dark" when captures.json gives
+  // dark frames, else "ring"); "dark": the dark frames (taken with the source
+  // off: dark current and stray light) are the whole background; "ring": also
+  // subtract the median of the frame's outer ring (which holds any light the
+  // DOE scatters that far: biased for wide-angle scatter, README).
+  std::string background = "auto";
+  double hot_pixel_sigma = 8.0;   // a hot pixel is this many noise σ above its neighbours' median ...
+  double hot_pixel_ratio = 3.0;   // ... and this many times its brightest neighbour
+  double min_snr = 10.0;          // a capture whose peak is below this many noise σ holds no signal (exit 2)
+  SyntheticCaptureConfig synthetic;
 };
 
 // hsd_scenes: synthetic tabletop HS-D scenes (data/scene_generator.h).
@@ -240,6 +292,8 @@ struct Config {
   TrainConfig train;
   DistributedConfig distributed;
   DataConfig data;
+  FabricationConfig fabrication;
+  CalibrationConfig calibration;
   Json resolved;  // the fully resolved JSON (after extends and --set), written next to outputs
 };
 

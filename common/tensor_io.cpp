@@ -7,14 +7,22 @@
 
 namespace hsd {
 
-void save_tensor_dict(const std::string& path, const TensorDict& dict) {
-  c10::Dict<std::string, at::Tensor> d;
-  for (const auto& [k, v] : dict) d.insert(k, v.detach().cpu().contiguous());
-  const std::vector<char> bytes = torch::pickle_save(c10::IValue(d));
+void save_tensor_dict(const std::string& path, const TensorDict& dict, const StringDict& strings) {
+  std::vector<char> bytes;
+  if (strings.empty()) {
+    c10::Dict<std::string, at::Tensor> d;
+    for (const auto& [k, v] : dict) d.insert(k, v.detach().cpu().contiguous());
+    bytes = torch::pickle_save(c10::IValue(d));
+  } else {
+    c10::impl::GenericDict d(c10::StringType::get(), c10::AnyType::get());
+    for (const auto& [k, v] : dict) d.insert(k, v.detach().cpu().contiguous());
+    for (const auto& [k, v] : strings) d.insert(k, v);
+    bytes = torch::pickle_save(c10::IValue(d));
+  }
   write_binary_file(path, bytes);
 }
 
-TensorDict load_tensor_dict(const std::string& path) {
+TensorDict load_tensor_dict(const std::string& path, StringDict* strings) {
   const std::vector<char> bytes = read_binary_file(path);
   c10::IValue v;
   try {
@@ -31,7 +39,8 @@ TensorDict load_tensor_dict(const std::string& path) {
     if (val.isTensor()) out[k] = val.toTensor();
     else if (val.isDouble()) out[k] = torch::tensor(val.toDouble(), torch::kFloat64);
     else if (val.isInt()) out[k] = torch::tensor(val.toInt(), torch::kInt64);
-    // other values (strings, lists) are metadata; ignored here
+    else if (val.isString() && strings) (*strings)[k] = val.toStringRef();
+    // other values (lists, ...) are metadata; ignored here
   }
   return out;
 }

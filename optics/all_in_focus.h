@@ -24,16 +24,4 @@ namespace hsd::optics {
 // (sums to 1); L, Z, P from the config (optics.wavelengths_nm, depths_m, psf_size).
 torch::Tensor all_in_focus_psf(const OpticsConfig& cfg, const Material& material, torch::Device device);
 
-// A PsfProvider (sensor.h) that hands out slices of a fixed stack [L, Z, P, P]
-// (the height map is ignored; no gradient reaches it).
-PsfProvider fixed_psf_provider(const torch::Tensor& psf);
-
-// The imaging PSFs' provider of optics.psf_source: the all-in-focus control's
-// fixed stack, or nullptr for "simulator" (the DOE's PSFs from a PsfSimulator).
-PsfProvider psf_source_provider(const OpticsConfig& cfg, const Material& material, torch::Device device);
-
-// Every band's and depth's imaging PSF [L, Z, P, P] for the height map [N, N]:
-// the provider's (when given) or the simulator's; no gradient.
-torch::Tensor imaging_psf_stack(const PsfSimulator& sim, const torch::Tensor& height_m, const PsfProvider& provider);
-
 }  // namespace hsd::optics

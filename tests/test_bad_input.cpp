@@ -14,6 +14,8 @@
 #include <string>
 #include <vector>
 
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
 #include <torch/script.h>
 #include <torch/torch.h>
 
@@ -71,8 +73,13 @@ void check_table(const std::string& app_and_args, const std::vector<Case>& cases
 
 // One tiny trained run, its export and doctored copies, shared by the tables.
 struct Fixture {
-  fs::path base = fs::temp_directory_path() / "hsd_test_bad_input";
+  // One folder per test process: ctest -j runs the cases of this file side by side.
+  fs::path base = fs::temp_directory_path() / ("hsd_test_bad_input_" + std::to_string(::getpid()));
   std::string sets, cfg, ckpt, model;
+  ~Fixture() {
+    std::error_code ec;
+    fs::remove_all(base, ec);
+  }
   Fixture() {
     fs::remove_all(base);
     fs::create_directories(base);
@@ -290,5 +297,84 @@ TEST_CASE("bad input: hsd_import, hsd_bench and hsd_ablate refuse inconsistent f
       {F.cfg + " --seeds '' --out " + b + "/abl", 2, "--seeds", ""},
       {F.cfg + " --seeds 0,0 --out " + b + "/abl", 2, "--seeds", ""},
       {F.cfg + " --seeds 0, --out " + b + "/abl", 2, "--seeds", ""},
+  });
+}
+
+TEST_CASE("bad input: hsd_calibrate, PSF files, init checkpoints and --camera-psf are refused naming the file or key", "[app][bad_input][calibration]") {
+  Fixture& F = fixture();
+  REQUIRE(F.ok);
+  const fs::path b = F.base / "cal";
+  fs::remove_all(b);
+  fs::create_directories(b);
+  const std::string caps = (b / "caps").string(), out = (b / "out").string();
+  REQUIRE(run("hsd_calibrate " + F.cfg + " --set calibration.synthetic.exposures=1 --make-captures --out " + caps).code == 0);
+  // Doctored capture folders: each a copy of the good one with one thing wrong.
+  const Json good = Json::parse(std::ifstream(caps + "/captures.json"));
+  auto folder = [&](const std::string& name, const std::function<void(Json&)>& edit) {
+    const fs::path d = b / name;
+    fs::remove_all(d);
+    fs::copy(caps, d);
+    Json j = good;
+    edit(j);
+    std::ofstream(d / "captures.json") << j.dump(1);
+    return d.string();
+  };
+  const std::string wrong_wl = folder("wrong_wl", [](Json& j) { j["wavelengths_nm"][0] = 440; });
+  const std::string missing = folder("missing", [](Json& j) { j["files"][1][0] = "nowhere.png"; });
+  const std::string short_row = folder("short_row", [](Json& j) { j["files"][0].erase(1); });
+  const std::string saturated = folder("saturated", [](Json&) {});
+  {  // one capture clipped at the sensor's maximum over a 3x3 block at its peak
+    const std::string f = saturated + "/" + good["files"][0][0][0].get<std::string>();
+    cv::Mat m = cv::imread(f, cv::IMREAD_UNCHANGED);
+    double mx;
+    cv::Point at;
+    cv::minMaxLoc(m, nullptr, &mx, nullptr, &at);
+    m(cv::Rect(at.x - 1, at.y - 1, 3, 3)).setTo(65535);
+    cv::imwrite(f, m);
+  }
+  const std::string dark_only = folder("dark_only", [](Json&) {});
+  {  // a capture with no point source: the dark frame itself
+    const std::string f = dark_only + "/" + good["files"][2][1][0].get<std::string>();
+    fs::copy_file(dark_only + "/" + good["dark"][0].get<std::string>(), f, fs::copy_options::overwrite_existing);
+  }
+  const std::string rgb = folder("rgb", [](Json&) {});
+  {
+    const std::string f = rgb + "/" + good["files"][0][1][0].get<std::string>();
+    cv::imwrite(f, cv::Mat(61, 61, CV_8UC3, cv::Scalar(1, 2, 3)));
+  }
+  check_table("hsd_calibrate", {
+      {F.cfg + " --captures " + b.string() + "/nothing --out " + out, 2, "captures.json", out + "/psf.pt"},
+      {F.cfg + " --captures " + wrong_wl + " --out " + out, 2, "wavelengths_nm", out + "/psf.pt"},
+      {F.cfg + " --captures " + missing + " --out " + out, 2, "nowhere.png", out + "/psf.pt"},
+      {F.cfg + " --captures " + short_row + " --out " + out, 2, "files[0]", out + "/psf.pt"},
+      {F.cfg + " --captures " + saturated + " --out " + out, 2, "saturated", out + "/psf.pt"},
+      {F.cfg + " --captures " + dark_only + " --out " + out, 2, "no signal", out + "/psf.pt"},
+      {F.cfg + " --captures " + rgb + " --out " + out, 2, "single-channel", out + "/psf.pt"},
+      {F.cfg + " --captures " + caps + " --set calibration.registration=axle --out " + out, 2, "calibration.registration", ""},
+      {F.cfg + " --out " + out, 2, "--captures/--make-captures", ""},
+      {F.cfg + " --captures " + caps + " --make-captures --out " + out, 2, "--captures/--make-captures", ""},
+  });
+  // PSF files as the imaging PSFs, and checkpoints to start from.
+  const std::string truth = caps + "/truth_psf.pt", run_out = (b / "train").string();
+  TensorDict t = load_tensor_dict(truth);
+  t["depths_m"] = torch::tensor({0.5, 2.5}, torch::kFloat64);
+  save_tensor_dict((b / "other_depths.pt").string(), t);
+  check_table("hsd_train", {
+      {F.cfg + " --set optics.psf_source=file: --out " + run_out, 2, "optics.psf_source", ""},
+      {F.cfg + " --set optics.psf_source=file:" + b.string() + "/none.pt --out " + run_out, 2, "none.pt", run_out + "/metrics.csv"},
+      {F.cfg + " --set optics.psf_source=file:" + b.string() + "/other_depths.pt --out " + run_out, 2, "optics.psf_source",
+       run_out + "/metrics.csv"},
+      {F.cfg + " --set train.init_checkpoint=" + b.string() + "/none.pt --out " + run_out, 2, "none.pt", run_out + "/metrics.csv"},
+      {F.cfg + " --set train.init_checkpoint=" + F.base.string() + "/nan_weight.pt --out " + run_out, 2, "nan_weight.pt",
+       run_out + "/metrics.csv"},
+      {F.cfg + " --set model.base_width=8 --set train.init_checkpoint=" + F.ckpt + " --out " + run_out, 2, "train.init_checkpoint",
+       run_out + "/metrics.csv"},
+  });
+  check_table("hsd_eval", {
+      {F.cfg + " --checkpoint " + F.ckpt + " --camera-psf " + b.string() + "/other_depths.pt --out " + out, 2, "--camera-psf",
+       out + "/metrics.json"},
+  });
+  check_table("hsd_simulate --scene " + F.base.string() + "/data/scene_test_000.exr", {
+      {F.cfg + " --set optics.psf_source=file:" + b.string() + "/none.pt --out " + out, 2, "none.pt", out + "/sensor.exr"},
   });
 }

@@ -19,6 +19,7 @@
 #include "model/unet.h"
 #include "model/wiener_preinverse.h"
 #include "optics/all_in_focus.h"
+#include "optics/psf_source.h"
 #include "optics/depth_distinctness.h"
 #include "optics/doe.h"
 #include "optics/material.h"

@@ -16,7 +16,7 @@
 #include "data/image_io.h"
 #include "data/manifest.h"
 #include "data/preview.h"
-#include "optics/all_in_focus.h"
+#include "optics/psf_source.h"
 #include "optics/psf_atlas.h"
 #include "optics/spectrum.h"
 #include "model/spectral_upsampling.h"
@@ -51,22 +51,25 @@ std::string effective_resolution_text(double px) {
                            : "more than " + std::to_string(kOracleWindowsPx.back()) + " px";
 }
 
-EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& split, const std::string& out_dir) {
+EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& split, const std::string& out_dir,
+                    const optics::PsfProvider& camera_psf) {
   trainer.net()->eval();
   trainer.refresh_preinverse();
   auto net = [&](const torch::Tensor& x) {
     const model::NetOutput o = trainer.net()->forward(x);
     return std::make_pair(o.hs, o.depth_m);
   };
+  const torch::Tensor model_psf = camera_psf ? trainer.psf_stack() : torch::Tensor();
   EvalResult r = evaluate(trainer.psf(), trainer.sensor(), trainer.doe().height().detach(), net, cfg, split, out_dir,
-                          trainer.baseline_inv_depth(), trainer.fixed_psf());
+                          trainer.baseline_inv_depth(), camera_psf ? camera_psf : trainer.fixed_psf(), model_psf);
   trainer.net()->train();
   return r;
 }
 
 EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& sensor, const torch::Tensor& height_m,
                     const Reconstructor& reconstruct, const Config& cfg, const std::string& split,
-                    const std::string& out_dir, double baseline_inv_depth, const optics::PsfProvider& fixed_psf) {
+                    const std::string& out_dir, double baseline_inv_depth, const optics::PsfProvider& fixed_psf,
+                    const torch::Tensor& model_psf) {
   const std::string root = cfg.data.root;
   const auto bands = cfg.optics.wavelengths_m();
   const double bw = cfg.optics.band_width_m();
@@ -85,7 +88,8 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
               "depth (made by an earlier hsd); retrain, or evaluate with a checkpoint of this version");
   const torch::Tensor up_w = model::spectral_upsampling_weights(sensor.omega.cpu());
   const torch::Tensor imaging_psf = optics::imaging_psf_stack(psf, h, fixed_psf).cpu();
-  const torch::Tensor rgb_psf = model::camera_rgb_psfs(imaging_psf, sensor.omega.cpu());
+  const torch::Tensor rgb_psf =
+      model::camera_rgb_psfs(model_psf.defined() ? model_psf.detach().cpu() : imaging_psf, sensor.omega.cpu());
   int cc_count = 0;
   double cc_sum = 0.0;
   log::Progress progress("evaluate", long(scenes.size()));

@@ -47,17 +47,24 @@ struct EvalResult {
 using Reconstructor = std::function<std::pair<torch::Tensor, torch::Tensor>(const torch::Tensor&)>;
 
 // The optics (PSF simulator, sensor model, DOE height [N, N]; or a fixed PSF
-// stack through `fixed_psf`, the all-in-focus control) image each scene;
-// `reconstruct` recovers it. Every metric is over the scene's valid pixels.
+// stack through `fixed_psf`: the all-in-focus control, a PSF file) image each
+// scene; `reconstruct` recovers it. Every metric is over the scene's valid pixels.
 // Beside the model, the baselines on the same pixels: the spectral-upsampling
-// cube of the same sensor image, and the constant depth 1 / baseline_inv_depth
-// [1/m] (NaN: not reported, with a warning).
+// cube of the same sensor image, its Wiener deconvolution with `model_psf`
+// [L, Z, P, P] (the PSFs the system believes it has; undefined = the imaging
+// PSFs), and the constant depth 1 / baseline_inv_depth [1/m] (NaN: not
+// reported, with a warning).
 EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& sensor, const torch::Tensor& height_m,
                     const Reconstructor& reconstruct, const Config& cfg, const std::string& split,
                     const std::string& out_dir, double baseline_inv_depth = std::nan(""),
-                    const optics::PsfProvider& fixed_psf = nullptr);
+                    const optics::PsfProvider& fixed_psf = nullptr, const torch::Tensor& model_psf = {});
 
 // The same with a trainer's optics, DOE and network (load a checkpoint first).
-EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& split, const std::string& out_dir);
+// `camera_psf` (a fixed provider, e.g. of a measured or perturbed PSF file):
+// the scenes are imaged through it instead of the trainer's PSFs, while the
+// network (its Wiener pre-inversion) and the Wiener baseline keep the
+// trainer's: a system evaluated through a camera that differs from its model.
+EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& split, const std::string& out_dir,
+                    const optics::PsfProvider& camera_psf = nullptr);
 
 }  // namespace hsd::train

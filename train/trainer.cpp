@@ -21,7 +21,7 @@
 #include "data/synthetic_dataset.h"
 #include "model/spectral_upsampling.h"
 #include "model/wiener_preinverse.h"
-#include "optics/all_in_focus.h"
+#include "optics/psf_source.h"
 #include "optics/psf_atlas.h"
 #include "train/baselines.h"
 #include "train/metrics_csv.h"
@@ -131,7 +131,11 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
   }
   fixed_psf_ = optics::psf_source_provider(cfg.optics, material_, device_);
   if (fixed_psf_) {
-    if (!cfg.train.freeze_doe) log::info("optics.psf_source = \"all_in_focus\": the control; the DOE is not used and only the network is trained");
+    const std::string file = optics::psf_file_path(cfg.optics);
+    if (!file.empty())
+      log::info("optics.psf_source: imaging through the PSF stack " + file + "; the DOE is not used and only the network is trained");
+    else if (!cfg.train.freeze_doe)
+      log::info("optics.psf_source = \"all_in_focus\": the control; the DOE is not used and only the network is trained");
   }
   doe_trained_ = !cfg.train.freeze_doe && !fixed_psf_;
   // The PSF's reach plus the soft layer masks' (3σ): then the patch's image is
@@ -224,7 +228,8 @@ void Trainer::attach_data() {
   const double bw = cfg_.optics.band_width_m();
   train_scenes_ = data::load_split(root, "train", bands, bw, cfg_.data.loader_threads);
   baseline_inv_depth_ = median_inverse_depth(train_scenes_);
-  if (cfg_.model.head_init == "baselines") net_->start_at_baselines(baseline_inv_depth_);  // a checkpoint, if resumed, replaces it
+  // A checkpoint, if resumed, replaces the heads; train.init_checkpoint's are kept.
+  if (cfg_.model.head_init == "baselines" && !network_started_) net_->start_at_baselines(baseline_inv_depth_);
   const data::Manifest m = data::read_manifest(root);
   bank_ = std::make_unique<data::IlluminantBank>(cfg_.data.illuminants, bands, bw);
   const int64_t rendered = cfg_.data.patch_size_px + 2 * margin_;
@@ -617,6 +622,27 @@ std::vector<std::vector<std::string>> Trainer::resume_rows(const std::string& cs
     if (wall_offset) *wall_offset = std::atof(c[1].c_str());
   }
   return rows;
+}
+
+void Trainer::start_from(const std::string& path) {
+  if (!std::filesystem::is_regular_file(path)) input_error(path, "no such checkpoint file (train.init_checkpoint)");
+  const TensorDict d = load_tensor_dict(path);
+  torch::NoGradGuard no_grad;
+  std::vector<std::pair<torch::Tensor, torch::Tensor>> copies;  // (destination, checked source): all checked first
+  auto add = [&](const std::string& name, torch::Tensor dst) {
+    const torch::Tensor t = dict_get(d, "net." + name, path);
+    if (t.sizes() != dst.sizes())
+      input_error(path, "net." + name + " is " + c10::str(t.sizes()) + " but the config builds " + c10::str(dst.sizes()) +
+                            " (train.init_checkpoint must come from a config with the same network)");
+    const std::string bad = first_nonfinite(t);
+    if (!bad.empty()) input_error(path, "net." + name + " holds " + bad);
+    copies.emplace_back(dst, t);
+  };
+  for (auto& p : net_->named_parameters()) add(p.key(), p.value());
+  for (auto& b : net_->named_buffers()) add(b.key(), b.value());
+  for (auto& [dst, src] : copies) dst.copy_(src.to(dst.device(), dst.scalar_type()));
+  network_started_ = true;
+  log::info("network weights from " + path + " (train.init_checkpoint); DOE, optimizer and step start afresh");
 }
 
 void Trainer::check_resume(const std::string& out_dir) {

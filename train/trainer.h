@@ -108,6 +108,11 @@ class Trainer {
   // Returns the next step; InputError naming the file for a mismatch. With a
   // group every rank reads it (same step required), then takes rank 0's values.
   int64_t load_checkpoint(const std::string& path);
+  // train.init_checkpoint: the network's weights (parameters and buffers) from
+  // a training checkpoint of a config with the same network; nothing else
+  // (DOE, optimizer, step). Call before attach_data, which then leaves the
+  // heads as loaded. InputError naming the file for a missing or mismatched entry.
+  void start_from(const std::string& path);
 
   // The whole run with its outputs in out_dir (CONTRACT.md: metrics.csv,
   // checkpoints/last.pt, config.json; plus curves.png, val/ pictures). With a
@@ -121,8 +126,9 @@ class Trainer {
   bool writes_outputs() const { return !group_ || group_->rank() == 0; }
 
   torch::Tensor height() const { return doe_.height().detach(); }
-  // The imaging PSFs' provider for simulate_sensor: the all-in-focus control's
-  // fixed stack, or nullptr (the DOE's PSFs from psf()).
+  // The imaging PSFs' provider for simulate_sensor: a fixed stack
+  // (optics.psf_source: the all-in-focus control's or a file's), or nullptr
+  // (the DOE's PSFs from psf()).
   const optics::PsfProvider& fixed_psf() const { return fixed_psf_; }
   // Every band's and depth's imaging PSF [L, Z, P, P] (the DOE's or the fixed stack).
   torch::Tensor psf_stack() const;
@@ -165,6 +171,7 @@ class Trainer {
   optics::PsfProvider fixed_psf_;   // optics.psf_source = "all_in_focus": the control's PSFs
   bool doe_trained_ = true;         // false when frozen (train.freeze_doe) or unused (a fixed PSF source)
   double baseline_inv_depth_ = std::nan("");
+  bool network_started_ = false;    // start_from() loaded the network: attach_data keeps its heads
   TrainingPrecision precision_;
   StepProfile* profile_ = nullptr;
   int64_t margin_ = 0;              // data.render_margin_px resolved
