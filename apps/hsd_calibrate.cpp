@@ -33,7 +33,6 @@ namespace {
 
 const char* kUsage = usage::kText;
 
-torch::Tensor f64(const std::vector<double>& v) { return torch::tensor(v, torch::kFloat64); }
 torch::Tensor scalar(double v) { return torch::tensor(v, torch::kFloat64); }
 
 // The PSF stack of `height` with the config's simulator, in a window of `window` px.
@@ -49,16 +48,8 @@ torch::Tensor simulate(const Config& cfg, const optics::Material& material, cons
 
 TensorDict psf_entries(const Config& cfg, const optics::Material& material, const torch::Tensor& psf, const torch::Tensor& height) {
   const optics::PsfSpec spec = optics::make_psf_spec(cfg.optics, material, torch::kCPU);
-  return {{"psf", psf.to(torch::kFloat32)},
-          {"wavelengths_m", f64(spec.wavelengths_m)},
-          {"depths_m", f64(spec.depths_m)},
-          {"pixel_pitch_m", scalar(spec.pixel_pitch_m)},
-          {"sensor_distance_m", scalar(spec.sensor_distance_m)},
-          {"aperture_diameter_m", scalar(spec.aperture_diameter_m)},
-          {"doe_pitch_m", scalar(spec.doe_pitch_m)},
-          {"height_map_m", height.to(torch::kFloat32)},
-          {"refractive_index", f64(spec.refractive_index)},
-          {"camera_response", optics::camera_response(cfg.sensor.camera, spec.wavelengths_m, cfg.optics.band_width_m())}};
+  return optics::psf_file_entries(spec, psf, height,
+                                  optics::camera_response(cfg.sensor.camera, spec.wavelengths_m, cfg.optics.band_width_m()));
 }
 
 int make_captures(const AppArgs& args, const Config& cfg) {
@@ -218,8 +209,7 @@ int calibrate(const AppArgs& args, const Config& cfg) {
   const optics::PsfMismatch mm = optics::compare_psfs(psf, sim);
   const optics::PsfSpec spec = optics::make_psf_spec(cfg.optics, material, torch::kCPU);
 
-  TensorDict entries = psf_entries(cfg, material, psf, height);
-  entries.erase("height_map_m");  // the captured DOE's height is not known
+  TensorDict entries = psf_entries(cfg, material, psf, torch::Tensor());  // the captured DOE's height is not known
   entries["energy_in_window"] = energy.to(torch::kFloat32);
   entries["background_counts"] = bg;
   entries["noise_sigma_counts"] = sigma;
@@ -287,10 +277,11 @@ int calibrate(const AppArgs& args, const Config& cfg) {
     }
   }
   log::info(table);
-  std::snprintf(buf, sizeof buf, "relative L1 mean %.4f, max %.4f; light in the window %.1f %% of the frame's (mean); %lld hot pixels replaced",
+  char summary[256];
+  std::snprintf(summary, sizeof summary, "relative L1 mean %.4f, max %.4f; light in the window %.1f %% of the frame's (mean); %lld hot pixels replaced",
                 m["rel_l1_mean"].get<double>(), m["rel_l1_max"].get<double>(), 100.0 * energy.mean().item<double>(),
                 (long long)hot.sum().item<int64_t>());
-  log::info(buf);
+  log::info(summary);
   log::info("wrote " + args.out_dir + "/psf.pt (use it: --set optics.psf_source=\\\"file:" + args.out_dir +
             "/psf.pt\\\"), mismatch.json, mismatch.png, config.json");
   return 0;

@@ -115,21 +115,9 @@ int run(const AppArgs& args) {
       log::info(line + buf);
     }
   }
-  auto f64 = [](const std::vector<double>& v) { return torch::tensor(v, torch::kFloat64); };
-  auto scalar = [](double v) { return torch::tensor(v, torch::kFloat64); };
-  optics::write_psf_file(args.out_dir + "/psf.pt",
-                   {{"psf", out.psf.to(torch::kFloat32)},
-                    {"energy_in_window", energy.to(torch::kFloat32)},
-                    {"wavelengths_m", f64(spec.wavelengths_m)},
-                    {"depths_m", f64(spec.depths_m)},
-                    {"pixel_pitch_m", scalar(spec.pixel_pitch_m)},
-                    {"sensor_distance_m", scalar(spec.sensor_distance_m)},
-                    {"aperture_diameter_m", scalar(spec.aperture_diameter_m)},
-                    {"doe_pitch_m", scalar(spec.doe_pitch_m)},
-                    {"height_map_m", height.to(torch::kFloat32)},
-                    {"refractive_index", f64(spec.refractive_index)},
-                    {"camera_response", omega}},
-                         "simulated");
+  TensorDict entries = optics::psf_file_entries(spec, out.psf, height, omega);
+  entries["energy_in_window"] = energy.to(torch::kFloat32);
+  optics::write_psf_file(args.out_dir + "/psf.pt", entries, "simulated");
   optics::write_psf_atlas(args.out_dir + "/psf_atlas.png", out.psf, spec.wavelengths_m, spec.depths_m);
   write_resolved_config(cfg, args.out_dir);
   log::info("wrote " + args.out_dir + "/psf.pt, psf_atlas.png, config.json");

@@ -90,6 +90,23 @@ torch::Tensor psf_for_config(const PsfFile& file, const OpticsConfig& cfg, const
   return file.psf.to(device);
 }
 
+TensorDict psf_file_entries(const PsfSpec& spec, const torch::Tensor& psf, const torch::Tensor& height_m,
+                            const torch::Tensor& omega) {
+  auto f64 = [](const std::vector<double>& v) { return torch::tensor(v, torch::kFloat64); };
+  auto scalar = [](double v) { return torch::tensor(v, torch::kFloat64); };
+  TensorDict d{{"psf", psf.to(torch::kFloat32)},
+               {"wavelengths_m", f64(spec.wavelengths_m)},
+               {"depths_m", f64(spec.depths_m)},
+               {"pixel_pitch_m", scalar(spec.pixel_pitch_m)},
+               {"sensor_distance_m", scalar(spec.sensor_distance_m)},
+               {"aperture_diameter_m", scalar(spec.aperture_diameter_m)},
+               {"doe_pitch_m", scalar(spec.doe_pitch_m)},
+               {"refractive_index", f64(spec.refractive_index)},
+               {"camera_response", omega}};
+  if (height_m.defined()) d["height_map_m"] = height_m.detach().to(torch::kFloat32);
+  return d;
+}
+
 void write_psf_file(const std::string& path, const TensorDict& entries, const std::string& source) {
   for (const char* k : {"psf", "wavelengths_m", "depths_m", "pixel_pitch_m"})
     if (!entries.count(k)) throw std::logic_error(std::string("write_psf_file: no entry ") + k);

@@ -19,6 +19,7 @@
 
 #include "common/config.h"
 #include "common/tensor_io.h"
+#include "optics/psf.h"
 
 namespace hsd::optics {
 
@@ -44,6 +45,12 @@ PsfFile read_psf_file(const std::string& path);
 // and what differs. Returns psf [L, Z, P, P] float32 on `device`.
 torch::Tensor psf_for_config(const PsfFile& file, const OpticsConfig& cfg, const std::string& path,
                              const std::string& key, torch::Device device);
+
+// The contract's entries of a stack psf [L, Z, P, P] made with `spec`: psf
+// (float32), wavelengths_m, depths_m, the geometry scalars, refractive_index,
+// camera_response (omega [3, L]) and, when defined, height_map_m (float32).
+TensorDict psf_file_entries(const PsfSpec& spec, const torch::Tensor& psf, const torch::Tensor& height_m,
+                            const torch::Tensor& omega);
 
 // Writes `entries` (which must hold psf, wavelengths_m, depths_m and
 // pixel_pitch_m; others are kept as they are) and the text entry source

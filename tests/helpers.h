@@ -46,6 +46,17 @@ inline std::pair<double, double> centroid(const torch::Tensor& img) {
   return {(w.sum(0) * c).sum().item<double>() / tot, (w.sum(1) * c).sum().item<double>() / tot};
 }
 
+// --set flags for a tiny training run on configs/tiny.json with its data in
+// data_root (a few seconds): a 4-wide, 2-level network, 16-px patches, 2
+// training, 1 validation and 1 test scene of 48 x 40 px, 2 steps of 2 patches.
+inline std::string tiny_run_sets(const std::filesystem::path& data_root) {
+  return " --set data.root=" + data_root.string() +
+         " --set model.base_width=4 --set model.levels=2 --set train.batch_size=2 --set train.steps=2"
+         " --set train.val_patches=2 --set data.patch_size_px=16 --set data.generator.train_scenes=2"
+         " --set data.generator.val_scenes=1 --set data.generator.test_scenes=1 --set data.generator.width_px=48"
+         " --set data.generator.height_px=40";
+}
+
 // Apps as a user runs them: from the source folder, stdout dropped.
 struct Run {
   int code;

@@ -83,11 +83,7 @@ struct Fixture {
   Fixture() {
     fs::remove_all(base);
     fs::create_directories(base);
-    sets = " --set data.root=" + (base / "data").string() +
-           " --set model.base_width=4 --set model.levels=2 --set train.batch_size=2 --set train.steps=2"
-           " --set train.val_patches=2 --set data.patch_size_px=16 --set data.generator.train_scenes=2"
-           " --set data.generator.val_scenes=1 --set data.generator.test_scenes=1 --set data.generator.width_px=48"
-           " --set data.generator.height_px=40";
+    sets = test::tiny_run_sets(base / "data");
     cfg = "--config configs/tiny.json" + sets;
     ckpt = (base / "run/checkpoints/last.pt").string();
     model = (base / "export/reconstructor.pt").string();

@@ -266,12 +266,7 @@ TEST_CASE("hsd_calibrate: synthetic captures of a perturbed DOE calibrate back t
 TEST_CASE("train.init_checkpoint and a PSF file: fine-tuning starts exactly where the first run ended", "[calibration][app][train]") {
   const fs::path base = fs::temp_directory_path() / "hsd_test_finetune";
   fs::remove_all(base);
-  const std::string sets =
-      " --set data.root=" + (base / "data").string() +
-      " --set model.base_width=4 --set model.levels=2 --set train.batch_size=2 --set train.steps=3"
-      " --set train.val_patches=2 --set data.patch_size_px=16 --set data.generator.train_scenes=2"
-      " --set data.generator.val_scenes=1 --set data.generator.test_scenes=1 --set data.generator.width_px=48"
-      " --set data.generator.height_px=40 --set train.freeze_doe=true";
+  const std::string sets = test::tiny_run_sets(base / "data") + " --set train.steps=3 --set train.freeze_doe=true";
   const std::string cfg = "--config configs/tiny.json" + sets;
   REQUIRE(test::run("hsd_train " + cfg + " --out " + (base / "a").string()).code == 0);
   REQUIRE(test::run("hsd_psf " + cfg + " --out " + (base / "psf").string()).code == 0);
