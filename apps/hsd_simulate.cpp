@@ -44,6 +44,9 @@ int run(const AppArgs& args) {
   // Other bands are resampled to the config's by band integration (with a warning).
   const data::SpectralScene scene =
       data::resample_scene_bands(data::read_scene_exr(scene_path), bands, cfg.optics.band_width_m(), scene_path);
+  if (cfg.optics.field_angle_deg != 0.0)
+    input_error("config key optics.field_angle_deg", "is for hsd_psf's off-axis analysis; hsd_simulate images with the "
+                                                     "shift-invariant on-axis model (set it to 0)");
   const auto material = optics::Material::load(cfg.optics.material);
   // optics.psf_source: the DOE's PSFs (nullptr), or a fixed stack (a PSF file, the all-in-focus control).
   const optics::PsfProvider fixed = optics::psf_source_provider(cfg.optics, material, device);

@@ -114,6 +114,8 @@ OpticsConfig parse_optics(const JsonReader& r) {
   if (o.psf_source != "simulator" && o.psf_source != "all_in_focus" && o.psf_source.rfind("file:", 0) != 0)
     r.fail("psf_source", "expected \"simulator\", \"all_in_focus\" or \"file:PATH\", got \"" + o.psf_source + "\"");
   if (o.psf_source == "file:") r.fail("psf_source", "\"file:\" needs a path to a psf.pt after the colon");
+  o.field_angle_deg = r.get_number("field_angle_deg", o.field_angle_deg);
+  if (!(std::abs(o.field_angle_deg) < 30.0)) r.fail("field_angle_deg", "must be within 30 degrees of the axis");
   o.energy_warn_threshold = r.get_number("energy_warn_threshold", o.energy_warn_threshold);
   if (!(o.energy_warn_threshold >= 0.0 && o.energy_warn_threshold <= 1.0))
     r.fail("energy_warn_threshold", "must be in [0, 1]");

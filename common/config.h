@@ -65,6 +65,12 @@ struct OpticsConfig {
   // pixel pitch and window must be the config's; the DOE is unused and the
   // network alone is trained, e.g. fine-tuned from train.init_checkpoint).
   std::string psf_source = "simulator";
+  // The point source's angle from the optical axis in the x-z plane [degrees]:
+  // hsd_psf then computes the off-axis PSF (optics/off_axis_psf.h: the window
+  // centred on the chief ray's image point −s tan θ) and the shift-variance
+  // table against the on-axis PSF. Training and imaging are on-axis (the
+  // shift-invariant model) and refuse a non-zero angle.
+  double field_angle_deg = 0.0;
   DoeConfig doe;
 
   std::vector<double> wavelengths_m() const;

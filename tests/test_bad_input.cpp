@@ -365,6 +365,8 @@ TEST_CASE("bad input: hsd_calibrate, PSF files, init checkpoints and --camera-ps
        run_out + "/metrics.csv"},
       {F.cfg + " --set model.base_width=8 --set train.init_checkpoint=" + F.ckpt + " --out " + run_out, 2, "train.init_checkpoint",
        run_out + "/metrics.csv"},
+      {F.cfg + " --set optics.field_angle_deg=8 --out " + run_out, 2, "optics.field_angle_deg", run_out + "/metrics.csv"},
+      {F.cfg + " --set optics.field_angle_deg=45 --out " + run_out, 2, "optics.field_angle_deg", run_out + "/metrics.csv"},
   });
   check_table("hsd_eval", {
       {F.cfg + " --checkpoint " + F.ckpt + " --camera-psf " + b.string() + "/other_depths.pt --out " + out, 2, "--camera-psf",

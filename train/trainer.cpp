@@ -129,6 +129,9 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
     o.train_dtype = precision_.dtype;
     net_ = model::HsdNet(o, w);
   }
+  if (cfg.optics.field_angle_deg != 0.0)
+    input_error("config key optics.field_angle_deg", "is for hsd_psf's off-axis analysis; training and evaluation image with the "
+                                                     "shift-invariant on-axis model (set it to 0)");
   fixed_psf_ = optics::psf_source_provider(cfg.optics, material_, device_);
   if (fixed_psf_) {
     const std::string file = optics::psf_file_path(cfg.optics);
