@@ -31,13 +31,18 @@ std::pair<double, double> robust_level(const torch::Tensor& v) {
   return {med, 1.4826 * mad};
 }
 
+// Rule 2 of the header on a float64 frame, given its neighbours' median and maximum.
+torch::Tensor hot_mask(const torch::Tensor& f, const torch::Tensor& med, const torch::Tensor& top, double sigma,
+                       double n_sigma, double ratio) {
+  return (f - med > n_sigma * sigma) & (f > ratio * top.clamp_min(sigma));
+}
+
 }  // namespace
 
 torch::Tensor find_hot_pixels(const torch::Tensor& frame, double sigma, double n_sigma, double ratio) {
   const torch::Tensor f = frame.to(torch::kFloat64);
   const torch::Tensor n = neighbours(f);
-  const torch::Tensor med = std::get<0>(n.median(0)), top = std::get<0>(n.max(0));
-  return (f - med > n_sigma * sigma) & (f > ratio * top.clamp_min(sigma));
+  return hot_mask(f, std::get<0>(n.median(0)), std::get<0>(n.max(0)), sigma, n_sigma, ratio);
 }
 
 torch::Tensor fourier_shift(const torch::Tensor& frame, double dy, double dx) {
@@ -95,9 +100,10 @@ CapturedPsf calibrate_capture(const torch::Tensor& frame, const torch::Tensor& d
   // Hot pixels first (with a noise level from the whole frame, which the PSF
   // occupies only in part), so that a saturated hot pixel is not a saturated capture.
   const double sigma0 = std::max(0.5, robust_level(f.flatten()).second);
-  const torch::Tensor hot = find_hot_pixels(f, sigma0, opt.hot_pixel_sigma, opt.hot_pixel_ratio);
+  const torch::Tensor nb = neighbours(f), nb_median = std::get<0>(nb.median(0));  // once: the test and the repair
+  const torch::Tensor hot = hot_mask(f, nb_median, std::get<0>(nb.max(0)), sigma0, opt.hot_pixel_sigma, opt.hot_pixel_ratio);
   out.hot_pixels = hot.sum().item<int64_t>();
-  if (out.hot_pixels > 0) f = torch::where(hot, std::get<0>(neighbours(f).median(0)), f);
+  if (out.hot_pixels > 0) f = torch::where(hot, nb_median, f);
   if (saturation > 0) {
     const int64_t sat = ((frame.to(torch::kFloat64) >= saturation) & ~hot).sum().item<int64_t>();
     if (sat > 0)
