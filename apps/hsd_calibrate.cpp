@@ -74,7 +74,8 @@ int make_captures(const AppArgs& args, const Config& cfg) {
   make_dirs(out);
   check_output_paths(outputs);
   const torch::Tensor ideal = doe.height().detach().to(torch::kFloat64);
-  const torch::Tensor height = optics::apply_fabrication_error(ideal, cfg.fabrication.error, cfg.optics.doe_pitch_m, cfg.seed + 17);
+  const torch::Tensor height = optics::apply_fabrication_error(
+      ideal, cfg.fabrication.error, {cfg.optics.doe_pitch_m, 1, doe.max_height_m(), cfg.fabrication.levels}, cfg.seed + 17);
   const double rms = (height - ideal).pow(2).mean().sqrt().item<double>();
   log::info("DOE " + cfg.optics.doe.init + " perturbed by fabrication.error: RMS height change " + c10::str(rms * 1e9) + " nm");
   const torch::Tensor frames_light = simulate(cfg, material, height, F, "PSFs on the frame");

@@ -30,13 +30,6 @@ namespace {
 
 const char* kUsage = usage::kText;
 
-std::vector<double> strided(const std::vector<double>& v, int64_t stride) {
-  std::vector<double> out;
-  for (size_t i = 0; i < v.size(); i += size_t(stride)) out.push_back(v[i]);
-  if (out.back() != v.back()) out.push_back(v.back());
-  return out;
-}
-
 Json report_json(const optics::CrlbReport& r) {
   auto finite = [](double v) { return std::isfinite(v) ? Json(v) : Json("inf"); };
   Json cond = Json::array();
@@ -59,23 +52,11 @@ int run(const AppArgs& args) {
   const Config cfg = load_config(args.config_path, args.overrides);
   const auto& F = cfg.fisher;
   const auto material = optics::Material::load(cfg.optics.material);
-  // The design grid: the DOE's physical size at fisher.design_samples samples.
-  OpticsConfig design = cfg.optics;
-  if (F.design_samples > 0) {
-    design.doe_pitch_m = cfg.optics.doe_pitch_m * double(cfg.optics.doe_samples) / double(F.design_samples);
-    design.doe_samples = F.design_samples;
-  }
+  const OpticsConfig design = optics::fisher_design_optics(cfg);
   const torch::Device cpu(torch::kCPU);
   const optics::PsfSpec dspec = optics::make_psf_spec(design, material, cpu);
   const optics::FisherGeometry g = optics::make_fisher_geometry(dspec, F.window_px, F.pixel_nodes);
-  optics::FisherSettings s;
-  s.photons = F.photons, s.background = F.background;
-  s.wavelengths_nm = strided(cfg.optics.wavelengths_nm, F.wavelength_stride);
-  s.depths_m = strided(cfg.optics.depths_m, F.depth_stride);
-  const auto& zs = cfg.optics.depths_m;
-  s.inv_depth_spacing = zs.size() > 1 ? std::fabs(1.0 / zs.front() - 1.0 / zs.back()) / double(zs.size() - 1) : 1.0;
-  s.band_width_nm = cfg.optics.band_width_m() * 1e9;
-  s.nuisance = F.nuisance, s.aggregate = F.aggregate, s.aggregate_cap = F.aggregate_cap;
+  const optics::FisherSettings s = optics::fisher_settings(cfg);
   optics::FisherSettings known = s;  // the same bounds with position and brightness known
   known.nuisance.clear();
   optics::SceneFisherSettings scene;

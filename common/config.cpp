@@ -254,6 +254,19 @@ void check_utf8(const Json& j, const std::string& path) {
 
 }  // namespace
 
+namespace {
+void parse_fabrication_error(const JsonReader& e, FabricationErrorConfig& E) {
+  E.height_scale_error = e.get_number("height_scale_error", E.height_scale_error);
+  if (!(E.height_scale_error > -0.5 && E.height_scale_error < 0.5)) e.fail("height_scale_error", "must be in (-0.5, 0.5)");
+  for (auto [k, v] : {std::pair<const char*, double*>{"roughness_rms_m", &E.roughness_rms_m},
+                      {"roughness_correlation_m", &E.roughness_correlation_m}, {"edge_blur_m", &E.edge_blur_m},
+                      {"misalignment_m", &E.misalignment_m}, {"decentre_m", &E.decentre_m}}) {
+    *v = e.get_number(k, *v);
+    if (!(*v >= 0.0 && *v < 1e-3)) e.fail(k, "must be in [0, 1e-3) metres");
+  }
+}
+}  // namespace
+
 Config parse_config(const Json& resolved) {
   if (!resolved.is_object()) input_error("config", "must be a JSON object");
   check_utf8(resolved, "");
@@ -384,6 +397,12 @@ Config parse_config(const Json& resolved) {
     if (T.clip_grad_norm < 0.0) t->fail("clip_grad_norm", "must be >= 0 (0 = off)");
     T.freeze_doe = t->get_bool("freeze_doe", T.freeze_doe);
     T.init_checkpoint = t->get_string("init_checkpoint", T.init_checkpoint);
+    if (auto n = t->optional_child("fabrication_noise")) {
+      parse_fabrication_error(*n, T.fabrication_noise);
+      if (T.fabrication_noise.misalignment_m != 0.0)
+        n->fail("misalignment_m", "must be 0 in training (a mask misalignment needs the level masks; sweep it with hsd_fabricate --tolerance)");
+      if (T.fabrication_noise.height_scale_error < 0.0) n->fail("height_scale_error", "is the standard deviation of the drawn error here: must be >= 0");
+    }
     T.loss_alpha = t->get_number("loss_alpha", T.loss_alpha);
     T.loss_beta = t->get_number("loss_beta", T.loss_beta);
     T.loss_gamma = t->get_number("loss_gamma", T.loss_gamma);
@@ -412,15 +431,39 @@ Config parse_config(const Json& resolved) {
   }
   if (auto d = r.optional_child("data")) c.data = parse_data(*d);
   if (auto f = r.optional_child("fabrication")) {
-    if (auto e = f->optional_child("error")) {
-      auto& E = c.fabrication.error;
-      E.height_scale_error = e->get_number("height_scale_error", E.height_scale_error);
-      if (!(E.height_scale_error > -0.5 && E.height_scale_error < 0.5)) e->fail("height_scale_error", "must be in (-0.5, 0.5)");
-      for (auto [k, v] : {std::pair<const char*, double*>{"roughness_rms_m", &E.roughness_rms_m},
-                          {"roughness_correlation_m", &E.roughness_correlation_m}, {"edge_blur_m", &E.edge_blur_m}}) {
-        *v = e->get_number(k, *v);
-        if (!(*v >= 0.0 && *v < 1e-3)) e->fail(k, "must be in [0, 1e-3) metres");
-      }
+    auto& F = c.fabrication;
+    F.levels = f->get_int("levels", F.levels);
+    if (F.levels < 2 || F.levels > 256 || (F.levels & (F.levels - 1)) != 0)
+      f->fail("levels", "must be a power of two in [2, 256] (log2 K binary masks)");
+    F.min_feature_m = f->get_number("min_feature_m", F.min_feature_m);
+    if (!(F.min_feature_m >= 0.0 && F.min_feature_m < 1e-3)) f->fail("min_feature_m", "must be in [0, 1e-3) metres");
+    F.cell_name = f->get_string("cell_name", F.cell_name);
+    if (F.cell_name.empty() || F.cell_name.size() > 32 ||
+        F.cell_name.find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_?$") != std::string::npos)
+      f->fail("cell_name", "must be 1-32 characters of A-Z, a-z, 0-9, _, ? and $ (GDSII structure names)");
+    if (auto e = f->optional_child("error")) parse_fabrication_error(*e, F.error);
+    if (auto t = f->optional_child("tolerance")) {
+      auto& T = F.tolerance;
+      auto sizes = [&](const char* key, std::vector<double>& v, double lo, double hi, const char* unit) {
+        if (!t->has(key)) return;
+        v = t->get_number_array(key);
+        if (v.empty()) t->fail(key, "must list at least one size");
+        for (size_t i = 0; i < v.size(); ++i) {
+          if (!(v[i] >= lo && v[i] < hi)) t->fail(key, std::string("sizes must be in [") + c10::str(lo) + ", " + c10::str(hi) + ") " + unit);
+          if (i > 0 && !(v[i] > v[i - 1])) t->fail(key, "sizes must increase");
+        }
+      };
+      sizes("height_scale_error", T.height_scale_error, 0.0, 0.5, "(relative)");
+      sizes("roughness_rms_m", T.roughness_rms_m, 0.0, 1e-3, "metres");
+      sizes("misalignment_m", T.misalignment_m, 0.0, 1e-3, "metres");
+      sizes("edge_blur_m", T.edge_blur_m, 0.0, 1e-3, "metres");
+      sizes("decentre_m", T.decentre_m, 0.0, 1e-2, "metres");
+      T.roughness_correlation_m = t->get_number("roughness_correlation_m", T.roughness_correlation_m);
+      if (!(T.roughness_correlation_m > 0.0 && T.roughness_correlation_m < 1e-3))
+        t->fail("roughness_correlation_m", "must be in (0, 1e-3) metres");
+      T.subsamples = t->get_int("subsamples", T.subsamples);
+      if (T.subsamples < 1 || T.subsamples > 16) t->fail("subsamples", "must be in [1, 16]");
+      T.network = t->get_bool("network", T.network);
     }
   }
   if (auto k = r.optional_child("calibration")) {

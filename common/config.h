@@ -149,6 +149,18 @@ struct ModelConfig {
   std::string residual = "image";
 };
 
+// The errors a fab makes, applied to a DOE height map (optics/fabrication_error.h):
+// hsd_calibrate --make-captures images a DOE perturbed by them; as
+// train.fabrication_noise they are the scales of random errors drawn each step.
+struct FabricationErrorConfig {
+  double height_scale_error = 0.0;       // relative etch-depth error: h -> (1 + e) h
+  double roughness_rms_m = 0.0;          // random height error, RMS [m]
+  double roughness_correlation_m = 0.0;  // its correlation length (Gaussian σ) [m]; 0 = white (per DOE sample)
+  double edge_blur_m = 0.0;              // Gaussian σ of the height map's blur (edge rounding) [m]
+  double misalignment_m = 0.0;           // lateral offset of each level's mask k >= 1 against mask 0 [m] (needs fabrication.levels)
+  double decentre_m = 0.0;               // lateral offset of the whole DOE against the aperture (along +x) [m]
+};
+
 // Joint training of DOE and network (train/trainer.h).
 struct TrainConfig {
   int64_t steps = 1000;
@@ -179,6 +191,13 @@ struct TrainConfig {
   // a CPU with native bfloat16 arithmetic, float32 elsewhere). Validation,
   // evaluation and the optics are float32 whatever this says.
   std::string precision = "float32";
+  // Fabrication-aware training (optics/fabrication_error.h): each step the
+  // height map the optics see is the DOE perturbed by random errors of these
+  // scales (etch depth e ~ N(0, height_scale_error²), new roughness of this
+  // RMS, edge blur σ ~ U(0, edge_blur_m), decentre ~ U(0, decentre_m) in a
+  // random direction); the gradient passes straight through to the DOE.
+  // All 0 = off. misalignment_m must be 0 (it needs the level masks).
+  FabricationErrorConfig fabrication_noise;
 };
 
 // Data-parallel training over several processes (train/distributed.h); who
@@ -190,17 +209,28 @@ struct DistributedConfig {
   bool split_psf = true;        // training PSFs computed once, shared out by bands (train/shared_psf.h); false: every rank all
 };
 
-// The errors a fab makes, applied to a DOE height map (optics/fabrication_error.h):
-// hsd_calibrate --make-captures images a DOE perturbed by them.
-struct FabricationErrorConfig {
-  double height_scale_error = 0.0;       // relative etch-depth error: h -> (1 + e) h
-  double roughness_rms_m = 0.0;          // random height error, RMS [m]
-  double roughness_correlation_m = 0.0;  // its correlation length (Gaussian σ) [m]; 0 = white (per DOE sample)
-  double edge_blur_m = 0.0;              // Gaussian σ of the height map's blur (edge rounding) [m]
+// hsd_fabricate --tolerance: the error sizes swept, one kind at a time (each
+// list starts at 0, the fabricated design without error).
+struct FabricationToleranceConfig {
+  std::vector<double> height_scale_error{0.0, 0.025, 0.05, 0.1, 0.2};
+  std::vector<double> roughness_rms_m{0.0, 5e-9, 10e-9, 20e-9, 40e-9};      // swept white and correlated
+  double roughness_correlation_m = 16e-6;                                    // σ of the correlated sweep [m]
+  std::vector<double> misalignment_m{0.0, 0.5e-6, 1e-6, 2e-6, 4e-6};
+  std::vector<double> edge_blur_m{0.0, 1e-6, 2e-6, 4e-6, 8e-6};
+  std::vector<double> decentre_m{0.0, 10e-6, 20e-6, 50e-6, 100e-6};
+  // Each DOE cell is rendered as s x s sub-cells, so lateral errors move
+  // edges by steps of doe_pitch_m / s (the cells' heights are unchanged).
+  int64_t subsamples = 4;
+  bool network = true;  // with a checkpoint and its data: HS PSNR and depth RMSE at every size (the test split)
 };
 
+// hsd_fabricate: the K-level lithography of a height map (optics/lithography.h).
 struct FabricationConfig {
+  int64_t levels = 16;                 // K height levels, a power of two: log2 K binary masks
+  double min_feature_m = 4e-6;         // the smallest line or space the process makes [m]; smaller ones are flagged
+  std::string cell_name = "HSD_DOE";   // the GDSII top cell
   FabricationErrorConfig error;
+  FabricationToleranceConfig tolerance;
 };
 
 // Synthetic point-source captures (hsd_calibrate --make-captures): what a lab

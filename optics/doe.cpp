@@ -122,11 +122,14 @@ torch::Tensor Doe::height() const {
   return h;
 }
 
+double doe_max_height_m(const OpticsConfig& cfg, const Material& material, const torch::Tensor& height_m) {
+  if (cfg.doe.max_height_m > 0.0) return cfg.doe.max_height_m;
+  return std::max(one_period_height(cfg, material), height_m.max().item<double>() * (1.0 + 1e-12));
+}
+
 Doe make_doe(const OpticsConfig& cfg, const Material& material, uint64_t seed, torch::Device device) {
   const torch::Tensor h0 = initial_height(cfg, material, seed);
-  double hmax = cfg.doe.max_height_m;
-  if (hmax <= 0.0) hmax = std::max(one_period_height(cfg, material), h0.max().item<double>() * (1.0 + 1e-12));
-  return Doe(h0.to(device), hmax, cfg.doe.quantization_levels, cfg.doe_pitch_m);
+  return Doe(h0.to(device), doe_max_height_m(cfg, material, h0), cfg.doe.quantization_levels, cfg.doe_pitch_m);
 }
 
 }  // namespace hsd::optics

@@ -44,6 +44,10 @@ torch::Tensor initial_height(const OpticsConfig& cfg, const Material& material, 
 // Default maximum height: one 2π period at the design wavelength, λ0/(η(λ0) − 1).
 double one_period_height(const OpticsConfig& cfg, const Material& material);
 
+// The period H of a height map's wrap (and of its levels): optics.doe.max_height_m,
+// or the larger of one period and the map's own maximum so a design is never cut.
+double doe_max_height_m(const OpticsConfig& cfg, const Material& material, const torch::Tensor& height_m);
+
 // Learnable height map with the fabrication constraints of the config:
 // heights wrap into [0, max_height) (a 2π phase wrap at the design wavelength,
 // gradient 1) and, with K quantization levels, are rounded to multiples of

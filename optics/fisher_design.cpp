@@ -10,6 +10,37 @@
 
 namespace hsd::optics {
 
+namespace {
+std::vector<double> strided(const std::vector<double>& v, int64_t stride) {
+  std::vector<double> out;
+  for (size_t i = 0; i < v.size(); i += size_t(stride)) out.push_back(v[i]);
+  if (out.back() != v.back()) out.push_back(v.back());
+  return out;
+}
+}  // namespace
+
+FisherSettings fisher_settings(const Config& cfg) {
+  const auto& F = cfg.fisher;
+  FisherSettings s;
+  s.photons = F.photons, s.background = F.background;
+  s.wavelengths_nm = strided(cfg.optics.wavelengths_nm, F.wavelength_stride);
+  s.depths_m = strided(cfg.optics.depths_m, F.depth_stride);
+  const auto& zs = cfg.optics.depths_m;
+  s.inv_depth_spacing = zs.size() > 1 ? std::fabs(1.0 / zs.front() - 1.0 / zs.back()) / double(zs.size() - 1) : 1.0;
+  s.band_width_nm = cfg.optics.band_width_m() * 1e9;
+  s.nuisance = F.nuisance, s.aggregate = F.aggregate, s.aggregate_cap = F.aggregate_cap;
+  return s;
+}
+
+OpticsConfig fisher_design_optics(const Config& cfg) {
+  OpticsConfig design = cfg.optics;
+  if (cfg.fisher.design_samples > 0) {
+    design.doe_pitch_m = cfg.optics.doe_pitch_m * double(cfg.optics.doe_samples) / double(cfg.fisher.design_samples);
+    design.doe_samples = cfg.fisher.design_samples;
+  }
+  return design;
+}
+
 namespace F = torch::nn::functional;
 
 torch::Tensor fresnel_lens_height(int64_t n, double pitch_m, double design_wavelength_m, double design_index,

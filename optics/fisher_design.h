@@ -24,6 +24,15 @@ struct FisherDesign {
   double start_aggregate = 0, final_aggregate = 0;
 };
 
+// The point-source CRLB settings of a config (fisher.*: photons, background,
+// nuisance, aggregate; the grid every wavelength_stride-th band and
+// depth_stride-th depth, and the last; aggregation scales from the config's
+// layers and band width): hsd_fisher's and hsd_fabricate's.
+FisherSettings fisher_settings(const Config& cfg);
+
+// The design grid: the DOE's physical size at fisher.design_samples samples.
+OpticsConfig fisher_design_optics(const Config& cfg);
+
 // The unwrapped Fresnel lens (fresnel_height before its wrap) [N, N] float64.
 torch::Tensor fresnel_lens_height(int64_t n, double pitch_m, double design_wavelength_m, double design_index,
                                   double design_depth_m, double sensor_distance_m);

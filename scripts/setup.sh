@@ -5,7 +5,8 @@
 set -euo pipefail
 PKGS=(build-essential cmake ninja-build
       libtorch-dev libopencv-dev libopenexr-dev nlohmann-json3-dev catch2 libgloo-dev zlib1g-dev
-      libopenblas0-pthread python3-torch)
+      libopenblas0-pthread python3-torch
+      libgdsii-dev python3-gdspy)  # two independent GDSII readers for the fabrication tests
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

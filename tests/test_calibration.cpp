@@ -148,12 +148,12 @@ TEST_CASE("fabrication errors: identity, exact scale, RMS and correlation of rou
   auto gen = at::detail::createCPUGenerator(1);
   const torch::Tensor h = 1e-6 * (1.0 + at::rand({64, 64}, gen, torch::TensorOptions().dtype(torch::kFloat64)));
   FabricationErrorConfig e;
-  CHECK(torch::equal(optics::apply_fabrication_error(h, e, 8e-6, 0), h));
+  CHECK(torch::equal(optics::apply_fabrication_error(h, e, {8e-6}, 0), h));
   e.height_scale_error = 0.05;
-  CHECK(torch::allclose(optics::apply_fabrication_error(h, e, 8e-6, 0), 1.05 * h, 0, 1e-18));
+  CHECK(torch::allclose(optics::apply_fabrication_error(h, e, {8e-6}, 0), 1.05 * h, 0, 1e-18));
   e = {};
   e.roughness_rms_m = 20e-9;
-  const torch::Tensor d = optics::apply_fabrication_error(h, e, 8e-6, 0) - h;
+  const torch::Tensor d = optics::apply_fabrication_error(h, e, {8e-6}, 0) - h;
   CHECK(d.pow(2).mean().sqrt().item<double>() == Approx(20e-9).epsilon(1e-9));
   auto neighbour_corr = [](const torch::Tensor& r) {
     const torch::Tensor a = r.narrow(1, 0, r.size(1) - 1), b = r.narrow(1, 1, r.size(1) - 1);
@@ -161,12 +161,12 @@ TEST_CASE("fabrication errors: identity, exact scale, RMS and correlation of rou
   };
   CHECK(std::abs(neighbour_corr(d)) < 0.1);  // white
   e.roughness_correlation_m = 24e-6;         // 3 samples
-  CHECK(neighbour_corr(optics::apply_fabrication_error(h, e, 8e-6, 0) - h) > 0.8);
+  CHECK(neighbour_corr(optics::apply_fabrication_error(h, e, {8e-6}, 0) - h) > 0.8);
   const torch::Tensor flat = torch::full({32, 32}, 5e-7, torch::kFloat64);
   CHECK(torch::allclose(optics::gaussian_blur_2d(flat, 2.5), flat, 1e-12, 0));
   e = {};
   e.edge_blur_m = 16e-6;
-  const torch::Tensor blurred = optics::apply_fabrication_error(h, e, 8e-6, 0);
+  const torch::Tensor blurred = optics::apply_fabrication_error(h, e, {8e-6}, 0);
   CHECK(blurred.std().item<double>() < 0.5 * h.std().item<double>());
   CHECK(blurred.mean().item<double>() == Approx(h.mean().item<double>()).epsilon(0.01));
 }
