@@ -21,6 +21,7 @@
 #include "data/synthetic_dataset.h"
 #include "model/spectral_upsampling.h"
 #include "model/wiener_preinverse.h"
+#include "optics/fabrication_error.h"
 #include "optics/psf_source.h"
 #include "optics/psf_atlas.h"
 #include "train/baselines.h"
@@ -39,6 +40,24 @@ uint64_t mix(uint64_t a, uint64_t b) {
   x *= 0xBF58476D1CE4E5B9ull;
   x ^= x >> 29;
   return x;
+}
+
+// train.fabrication_noise: the height map the optics see in training step
+// `step`, the DOE perturbed by one random draw of fabrication errors (the same
+// on every rank: seeded by the run's seed and the step), with the gradient
+// passed straight through to the DOE (optics/fabrication_error.h).
+torch::Tensor with_fabrication_noise(const torch::Tensor& h, const Config& cfg, const optics::Doe& doe, int64_t step) {
+  const FabricationErrorConfig& scales = cfg.train.fabrication_noise;
+  if (optics::no_fabrication_error(scales)) return h;
+  std::mt19937_64 rng(mix(cfg.seed ^ 0xFAB0FAB0ull, uint64_t(step)));
+  double angle = 0;
+  const FabricationErrorConfig e = optics::draw_fabrication_error(scales, rng, &angle);
+  torch::Tensor fab;
+  {
+    torch::NoGradGuard no_grad;
+    fab = optics::fabricated_surface(h.detach(), e, {doe.pitch_m(), 1, doe.max_height_m(), 0, angle}, rng());
+  }
+  return h + (fab - h.detach());
 }
 constexpr uint64_t kValSeed = 0x5EEDULL;
 
@@ -339,7 +358,7 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
       return psf_cut;
     };
   const auto gens = image_generators(mix(cfg_.seed ^ 0xA5A5A5A5ull, uint64_t(step)), batch.first_index, batch.radiance.size(0));
-  const torch::Tensor h = doe_.height();
+  const torch::Tensor h = fixed_psf_ ? doe_.height() : with_fabrication_noise(doe_.height(), cfg_, doe_, step);
   // The pre-inversion needs every layer's PSFs: computed once (through the
   // provider, so profiling and data-parallel sharing see one call) and handed
   // to the sensor model as slices of the same stack.

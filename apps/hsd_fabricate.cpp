@@ -1,0 +1,417 @@
+// hsd_fabricate: a DOE height map in the forms a fab accepts (16-bit height
+// map, K-level binary masks as PNG and GDSII; optics/lithography.h,
+// optics/gdsii.h), a fabrication report, and with --tolerance the sensitivity
+// of the design to the errors a fab makes (optics/fabrication_error.h,
+// optics/fabrication_tolerance.h).
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <torch/torch.h>                                    
+
+#include "common/app.h"
+#include "common/atomic_file.h"
+#include "common/error.h"
+#include "common/log.h"
+#include "common/tensor_io.h"
+#include "optics/doe.h"
+#include "optics/fabrication_error.h"
+#include "optics/fabrication_tolerance.h"
+#include "optics/fisher.h"
+#include "optics/fisher_design.h"
+#include "optics/gdsii.h"
+#include "optics/lithography.h"
+#include "optics/psf.h"
+#include "optics/psf_mismatch.h"
+#include "optics/psf_source.h"
+#include "train/evaluator.h"
+#include "train/plot.h"
+#include "train/trainer.h"
+#include "usage/hsd_fabricate.h"
+
+using namespace hsd;
+
+namespace {
+
+const char* kUsage = usage::kText;
+
+std::string fmt(double v, int digits = 4) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%.*g", digits, v);
+  return b;
+}
+
+// Images are encoded in memory and written whole (OpenCV picks the format by
+// the extension, which the atomic writer's temporary name does not keep).
+void write_image(const std::string& path, const cv::Mat& img) {
+  std::vector<uchar> buf;
+  const std::string ext = std::filesystem::path(path).extension().string();
+  if (!cv::imencode(ext, img, buf)) throw std::runtime_error("OpenCV could not encode " + path);
+  write_binary_file(path, std::vector<char>(buf.begin(), buf.end()));
+}
+
+cv::Mat to_mat_u16(const torch::Tensor& v) {  // [N, N] values in [0, 65535]
+  const torch::Tensor t = v.round().clamp(0, 65535).to(torch::kInt32).contiguous();
+  cv::Mat m(int(t.size(0)), int(t.size(1)), CV_32S, t.data_ptr<int32_t>());
+  cv::Mat out;
+  m.convertTo(out, CV_16U);
+  return out;
+}
+
+cv::Mat to_mat_u8(const torch::Tensor& mask) {
+  const torch::Tensor t = (mask.to(torch::kUInt8) * 255).contiguous();
+  return cv::Mat(int(t.size(0)), int(t.size(1)), CV_8U, t.data_ptr<uint8_t>()).clone();
+}
+
+struct Inputs {
+  torch::Tensor height;  // float64 [N, N], wrapped into [0, H)
+  double max_height_m = 0;
+  bool checkpoint = false;
+};
+
+Inputs read_doe(const Config& cfg, const optics::Material& material, const std::string& file) {
+  Inputs in;
+  const TensorDict d = load_tensor_dict(file);
+  in.checkpoint = d.count("doe.raw") && d.count("step");
+  const torch::Tensor h = optics::load_height_file(file, cfg.optics.doe_samples, cfg.optics.doe_pitch_m);
+  in.max_height_m = optics::doe_max_height_m(cfg.optics, material, h);
+  in.height = torch::remainder(h, in.max_height_m);
+  return in;
+}
+
+torch::Tensor simulate(const optics::PsfSimulator& sim, const torch::Tensor& height) {
+  torch::NoGradGuard no_grad;
+  return sim.compute(height).psf.to(torch::kFloat64);
+}
+
+std::pair<double, double> rel_l1(const torch::Tensor& psf, const torch::Tensor& reference) {
+  const torch::Tensor r = optics::compare_psfs(psf, reference).rel_l1;
+  return {r.mean().item<double>(), r.max().item<double>()};
+}
+
+// A picture of the fabrication: the design's heights, the quantised map, the
+// masks, and the level histogram, in tiles of 256 px.
+void write_fabrication_png(const std::string& path, const torch::Tensor& height, const optics::LevelMap& q,
+                           const torch::Tensor& masks, double H) {
+  const int T = 256;
+  auto tile = [&](const torch::Tensor& v01, const std::string& label) {
+    const torch::Tensor t = (v01.clamp(0, 1) * 255).round().to(torch::kUInt8).contiguous();
+    cv::Mat m(int(t.size(0)), int(t.size(1)), CV_8U, t.data_ptr<uint8_t>());
+    cv::Mat r;
+    cv::resize(m, r, cv::Size(T, T), 0, 0, cv::INTER_NEAREST);
+    cv::Mat c;
+    cv::cvtColor(r, c, cv::COLOR_GRAY2BGR);
+    cv::Mat out(T + 22, T, CV_8UC3, cv::Scalar(255, 255, 255));
+    c.copyTo(out(cv::Rect(0, 22, T, T)));
+    cv::putText(out, label, {4, 16}, cv::FONT_HERSHEY_SIMPLEX, 0.45, {0, 0, 0}, 1, cv::LINE_AA);
+    return out;
+  };
+  std::vector<cv::Mat> tiles{tile(height / H, "design height (0..H)"),
+                             tile(optics::level_heights(q) / H, std::to_string(q.levels) + " levels")};
+  for (int64_t k = 0; k < masks.size(0); ++k)
+    tiles.push_back(tile(masks[k].to(torch::kFloat64), "mask " + std::to_string(k) + " (layer " + std::to_string(k + 1) + ")"));
+  {  // histogram
+    cv::Mat h(T + 22, T, CV_8UC3, cv::Scalar(255, 255, 255));
+    const auto counts = optics::level_histogram(q);
+    const double top = double(*std::max_element(counts.begin(), counts.end()));
+    const double w = double(T - 8) / double(counts.size());
+    for (size_t k = 0; k < counts.size(); ++k) {
+      const int bh = int(std::round(double(T - 30) * double(counts[k]) / std::max(top, 1.0)));
+      cv::rectangle(h, cv::Rect(int(4 + w * double(k)), T + 22 - 4 - bh, std::max(1, int(w) - 1), bh), {150, 90, 40}, cv::FILLED);
+    }
+    cv::putText(h, "cells per level", {4, 16}, cv::FONT_HERSHEY_SIMPLEX, 0.45, {0, 0, 0}, 1, cv::LINE_AA);
+    tiles.push_back(h);
+  }
+  const int cols = 4, rows = int((tiles.size() + cols - 1) / cols);
+  cv::Mat canvas(rows * (T + 26), cols * (T + 4), CV_8UC3, cv::Scalar(255, 255, 255));
+  for (size_t i = 0; i < tiles.size(); ++i)
+    tiles[i].copyTo(canvas(cv::Rect(int(i % cols) * (T + 4), int(i / cols) * (T + 26), tiles[i].cols, tiles[i].rows)));
+  write_image(path, canvas);
+}
+
+struct Export {
+  optics::LevelMap q;
+  Json report;
+  std::string markdown;
+};
+
+Export export_doe(const AppArgs& args, const Config& cfg, const optics::Material& material, const Inputs& in,
+                  const std::string& doe_file) {
+  const auto& F = cfg.fabrication;
+  const std::string& out = args.out_dir;
+  const double pitch = cfg.optics.doe_pitch_m, H = in.max_height_m;
+  const int64_t N = cfg.optics.doe_samples, K = F.levels;
+  Export ex;
+  ex.q = optics::quantize_to_levels(in.height, H, K);
+  const torch::Tensor masks = optics::level_masks(ex.q);
+  const int64_t m = masks.size(0);
+  // The masks must make the quantised map exactly (optics/lithography.h).
+  if (!torch::equal(optics::height_from_masks(masks, ex.q.step_m), optics::level_heights(ex.q)))
+    throw std::logic_error("the level masks do not reconstruct the quantised height map");
+
+  // 16-bit height map: 0 = no material, 65535 = H (the design, for a grayscale process).
+  const cv::Mat hm = to_mat_u16(in.height / H * 65535.0);
+  write_image(out + "/height_map.png", hm);
+  write_image(out + "/height_map.tif", hm);
+  Json side;
+  side["_note"] = "hsd_fabricate: height_map.png/.tif are 16-bit grayscale, value v <-> height v / 65535 * max_height_m "
+                  "(0 = no material). Row r, column c is DOE cell [r, c] at x = (c - (N-1)/2) * pitch_m, "
+                  "y = (r - (N-1)/2) * pitch_m: the DOE seen from the scene, looking along +z towards the sensor "
+                  "(x right, y down). masks.gds has y up: the same DOE seen from the sensor side.";
+  side["max_height_m"] = H;
+  side["pitch_m"] = pitch;
+  side["samples"] = N;
+  side["levels"] = K;
+  side["level_step_m"] = ex.q.step_m;
+  side["material"] = cfg.optics.material;
+  side["refractive_index_at_design"] = material.index(cfg.optics.doe.design_wavelength_m);
+  side["design_wavelength_m"] = cfg.optics.doe.design_wavelength_m;
+  side["aperture_diameter_m"] = cfg.optics.aperture_diameter_m;
+  side["orientation"] = "row r = DOE row r (y grows downwards in the picture), column c = DOE column c (x grows rightwards); seen from the scene side";
+  side["source"] = doe_file;
+  write_text_file(out + "/height_map.json", side.dump(2) + "\n");
+
+  // Masks: PNG and GDSII.
+  std::vector<optics::GdsLayer> layers;
+  Json mask_rows = Json::array();
+  double min_feature = std::numeric_limits<double>::infinity();
+  int64_t below = 0;
+  const double min_cells = F.min_feature_m / pitch;
+  for (int64_t k = 0; k < m; ++k) {
+    write_image(out + "/mask_" + std::to_string(k) + ".png", to_mat_u8(masks[k]));
+    optics::GdsLayer l;
+    l.layer = k + 1;
+    l.rects = optics::mask_rectangles(masks[k]);
+    const optics::MaskFeatures f = optics::mask_features(masks[k], min_cells);
+    for (int64_t c : {f.min_line_cells, f.min_space_cells})
+      if (c > 0) min_feature = std::min(min_feature, double(c) * pitch);
+    below += f.lines_below + f.spaces_below;
+    mask_rows.push_back({{"mask", k},
+                         {"gds_layer", k + 1},
+                         {"etch_depth_m", double(int64_t(1) << k) * ex.q.step_m},
+                         {"covered_fraction", f.covered_fraction},
+                         {"area_m2", f.covered_fraction * double(N * N) * pitch * pitch},
+                         {"rectangles", int64_t(l.rects.size())},
+                         {"min_line_m", f.min_line_cells > 0 ? Json(double(f.min_line_cells) * pitch) : Json(nullptr)},
+                         {"min_space_m", f.min_space_cells > 0 ? Json(double(f.min_space_cells) * pitch) : Json(nullptr)},
+                         {"lines_below_min", f.lines_below},
+                         {"spaces_below_min", f.spaces_below}});
+    layers.push_back(std::move(l));
+  }
+  write_binary_file(out + "/masks.gds", optics::gdsii_bytes(layers, N, pitch, F.cell_name, "HSD"));
+
+  // Quantisation: height error and the PSF change it makes.
+  const double qrms = optics::quantisation_rms_m(in.height, ex.q, H);
+  const double eff = std::pow(std::sin(M_PI / double(K)) / (M_PI / double(K)), 2);
+  const optics::PsfSimulator sim(optics::make_psf_spec(cfg.optics, material, torch::kCPU));
+  log::info("PSFs of the design and of its " + std::to_string(K) + "-level map");
+  const torch::Tensor psf_design = simulate(sim, in.height), psf_q = simulate(sim, optics::level_heights(ex.q));
+  const auto [q_l1_mean, q_l1_max] = rel_l1(psf_q, psf_design);
+  write_fabrication_png(out + "/fabrication.png", in.height, ex.q, masks, H);
+
+  Json& j = ex.report;
+  j["levels"] = K;
+  j["masks"] = m;
+  j["level_step_m"] = ex.q.step_m;
+  j["max_height_m"] = H;
+  j["pitch_m"] = pitch;
+  j["min_feature_m"] = std::isfinite(min_feature) ? Json(min_feature) : Json(nullptr);
+  j["min_feature_required_m"] = F.min_feature_m;
+  j["features_below_min"] = below;
+  j["quantisation_rms_m"] = qrms;
+  j["quantisation_rms_rad"] = 2.0 * M_PI * qrms / H;
+  j["first_order_efficiency_sinc2"] = eff;
+  j["quantisation_psf_rel_l1_mean"] = q_l1_mean;
+  j["quantisation_psf_rel_l1_max"] = q_l1_max;
+  j["height_histogram"] = optics::level_histogram(ex.q);
+  j["mask_report"] = mask_rows;
+  j["gds"] = {{"file", "masks.gds"}, {"cell", F.cell_name}, {"user_unit_m", 1e-6}, {"database_unit_m", 1e-9}};
+
+  std::string& md = ex.markdown;
+  md += "# Fabrication report\n\n";
+  md += "DOE `" + doe_file + "`: " + std::to_string(N) + "x" + std::to_string(N) + " cells of " + fmt(pitch * 1e6) +
+        " um, heights wrapped into [0, " + fmt(H * 1e9) + " nm) (" + cfg.optics.material + "), " + std::to_string(K) +
+        " levels of " + fmt(ex.q.step_m * 1e9) + " nm made by " + std::to_string(m) + " binary masks.\n\n";
+  md += "| quantity | value |\n|---|---|\n";
+  md += "| quantisation error (RMS, phase-equivalent) | " + fmt(qrms * 1e9) + " nm (" + fmt(2.0 * M_PI * qrms / H, 3) + " rad) |\n";
+  md += "| first-order efficiency of " + std::to_string(K) + " levels, sinc^2(1/K) | " + fmt(eff, 4) + " |\n";
+  md += "| PSF change from quantisation, rel. L1 mean / max | " + fmt(q_l1_mean, 3) + " / " + fmt(q_l1_max, 3) + " |\n";
+  md += "| smallest feature found | " + (std::isfinite(min_feature) ? fmt(min_feature * 1e6) + " um" : std::string("none")) + " |\n";
+  md += "| process minimum (fabrication.min_feature_m) | " + fmt(F.min_feature_m * 1e6) + " um |\n";
+  md += "| features below the minimum | " + std::to_string(below) + (below > 0 ? " **(flagged)**" : "") + " |\n\n";
+  md += "| mask | GDS layer | etch depth [nm] | covered | rectangles | min line [um] | min space [um] | lines / spaces below min |\n";
+  md += "|---|---|---|---|---|---|---|---|\n";
+  for (const Json& r : mask_rows) {
+    auto um = [&](const Json& v) { return v.is_null() ? std::string("-") : fmt(v.get<double>() * 1e6); };
+    md += "| " + std::to_string(r["mask"].get<int64_t>()) + " | " + std::to_string(r["gds_layer"].get<int64_t>()) + " | " +
+          fmt(r["etch_depth_m"].get<double>() * 1e9) + " | " + fmt(100.0 * r["covered_fraction"].get<double>(), 3) + " % | " +
+          std::to_string(r["rectangles"].get<int64_t>()) + " | " + um(r["min_line_m"]) + " | " + um(r["min_space_m"]) + " | " +
+          std::to_string(r["lines_below_min"].get<int64_t>()) + " / " + std::to_string(r["spaces_below_min"].get<int64_t>()) + " |\n";
+  }
+  md += "\n![fabrication](fabrication.png)\n";
+  return ex;
+}
+
+// The tolerance sweep; returns its JSON and appends its markdown.
+Json tolerance(const AppArgs& args, const Config& cfg, const optics::Material& material, const Inputs& in,
+               const std::string& doe_file, const optics::LevelMap& q, std::string& md) {
+  const auto& T = cfg.fabrication.tolerance;
+  const int64_t s = T.subsamples, N = cfg.optics.doe_samples;
+  const double H = in.max_height_m;
+  OpticsConfig fine = cfg.optics;
+  fine.doe_samples = N * s;
+  fine.doe_pitch_m = cfg.optics.doe_pitch_m / double(s);
+  const optics::PsfSpec spec = optics::make_psf_spec(fine, material, torch::kCPU);
+  const optics::PsfSimulator sim(spec);
+  const optics::FisherGeometry g = optics::make_fisher_geometry(spec, cfg.fisher.window_px, cfg.fisher.pixel_nodes);
+  const optics::FisherSettings fs = optics::fisher_settings(cfg);
+  const torch::Tensor hq = optics::level_heights(q);
+  const optics::FabricationProcess process{cfg.optics.doe_pitch_m, s, H, cfg.fabrication.levels, 0.0};
+
+  // The network, when the DOE is a checkpoint and its dataset is there.
+  std::unique_ptr<train::Trainer> trainer;
+  const std::string manifest = cfg.data.root + "/manifest.json";
+  if (T.network && in.checkpoint) {
+    if (std::filesystem::exists(manifest)) {
+      trainer = std::make_unique<train::Trainer>(cfg);
+      trainer->load_checkpoint(doe_file);
+    } else {
+      log::warn("no dataset at " + cfg.data.root + " (data.root): the sweep reports PSFs and CRLBs only");
+    }
+  }
+  const std::string scratch = args.out_dir + "/.tolerance_eval";
+  auto network = [&](const torch::Tensor& psf) -> std::pair<double, double> {
+    if (!trainer) return {std::nan(""), std::nan("")};
+    const train::EvalResult r =
+        train::evaluate(*trainer, cfg, "test", scratch, psf.defined() ? optics::fixed_psf_provider(psf.to(torch::kFloat32)) : nullptr);
+    std::filesystem::remove_all(scratch);
+    return {r.mean.hs_psnr_db, r.mean.depth_rmse_m};
+  };
+  auto crlb = [&](const torch::Tensor& surface) { return optics::crlb_report(g, material, surface, fs).aggregate.item<double>(); };
+
+  const auto sweeps = optics::tolerance_sweeps(T);
+  int64_t total = 0;
+  for (const auto& sw : sweeps) total += int64_t(sw.sizes.size());
+  log::info("tolerance sweep: " + std::to_string(total) + " fabricated surfaces on " + std::to_string(N * s) + "^2 sub-cells (" +
+            std::to_string(s) + "x" + std::to_string(s) + " per DOE cell)" + (trainer ? ", each evaluated by the network" : ""));
+  const auto t0 = std::chrono::steady_clock::now();
+  const torch::Tensor ref_surface = optics::fabricated_surface(hq, {}, process, cfg.seed);
+  const torch::Tensor ref_psf = simulate(sim, ref_surface);
+  const double ref_crlb = crlb(ref_surface);
+  const auto design_net = network({});  // through the design's own PSFs (as trained)
+  const auto ref_net = network(ref_psf);
+  Json j;
+  j["subsamples"] = s;
+  j["levels"] = cfg.fabrication.levels;
+  j["reference"] = {{"crlb_aggregate", ref_crlb}, {"hs_psnr_db", ref_net.first}, {"depth_rmse_m", ref_net.second}};
+  j["design"] = {{"hs_psnr_db", design_net.first}, {"depth_rmse_m", design_net.second}};
+  j["crlb_aggregate_name"] = cfg.fisher.aggregate;
+  Json rows = Json::array();
+  std::vector<std::string> plots;
+  md += "\n# Tolerance\n\nEach error alone, against the " + std::to_string(cfg.fabrication.levels) +
+        "-level design without error (CRLB " + fmt(ref_crlb, 3) + " layers/bands, " + cfg.fisher.aggregate + ")";
+  if (trainer)
+    md += "; the network through the design's own PSFs: HS PSNR " + fmt(design_net.first) + " dB, depth RMSE " +
+          fmt(design_net.second, 3) + " m; through the " + std::to_string(cfg.fabrication.levels) + "-level map: " +
+          fmt(ref_net.first) + " dB, " + fmt(ref_net.second, 3) + " m (test split)";
+  md += ". Surfaces on " + std::to_string(s) + "x" + std::to_string(s) + " sub-cells per DOE cell.\n\n";
+  md += "| error | size | PSF rel. L1 mean | max | CRLB | HS PSNR [dB] | depth RMSE [m] |\n|---|---|---|---|---|---|---|\n";
+  log::Progress progress("tolerance", long(total));
+  for (const auto& sw : sweeps) {
+    Json r;
+    r["kind"] = sw.kind;
+    r["size_label"] = sw.size_label;
+    r["sizes"] = sw.sizes;
+    std::vector<double> l1_mean, l1_max, cr, psnr, rmse;
+    for (size_t i = 0; i < sw.sizes.size(); ++i) {
+      const torch::Tensor surface =
+          optics::fabricated_surface(hq, optics::tolerance_error(sw, sw.sizes[i], T), process, cfg.seed + 1000);
+      const torch::Tensor psf = simulate(sim, surface);
+      const auto [a, b] = rel_l1(psf, ref_psf);
+      l1_mean.push_back(a), l1_max.push_back(b), cr.push_back(crlb(surface));
+      const auto net = sw.sizes[i] == 0.0 ? ref_net : network(psf);
+      psnr.push_back(net.first), rmse.push_back(net.second);
+      md += "| " + sw.size_label + " | " + fmt(sw.sizes[i] * sw.unit_scale, 3) + " | " + fmt(a, 3) + " | " + fmt(b, 3) + " | " +
+            fmt(cr.back(), 3) + " | " + (trainer ? fmt(net.first) : std::string("-")) + " | " +
+            (trainer ? fmt(net.second, 3) : std::string("-")) + " |\n";
+      progress.step();
+    }
+    r["psf_rel_l1_mean"] = l1_mean, r["psf_rel_l1_max"] = l1_max, r["crlb_aggregate"] = cr;
+    if (trainer) r["hs_psnr_db"] = psnr, r["depth_rmse_m"] = rmse;
+    rows.push_back(r);
+    std::vector<double> x;
+    for (double v : sw.sizes) x.push_back(v * sw.unit_scale);
+    auto plot = [&](const std::string& name, const std::string& title, const std::vector<double>& y) {
+      const std::string f = args.out_dir + "/.tol_" + sw.kind + "_" + name + ".png";
+      train::write_line_plot(f, title, sw.size_label, {{title, x, y, {150, 60, 20}}}, false);
+      plots.push_back(f);
+    };
+    plot("l1", "PSF change (rel. L1, mean)", l1_mean);
+    plot("crlb", "CRLB (" + cfg.fisher.aggregate + ")", cr);
+    if (trainer) plot("psnr", "HS PSNR [dB]", psnr), plot("rmse", "depth RMSE [m]", rmse);
+  }
+  progress.finish();
+  j["sweeps"] = rows;
+  j["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  train::write_montage(plots, trainer ? 4 : 2, 1.0, args.out_dir + "/tolerance.png");
+  md += "\n![tolerance](tolerance.png)\n";
+  return j;
+}
+
+int run(const AppArgs& args) {
+  const Config cfg = load_config(args.config_path, args.overrides);
+  if (!args.has("--doe")) input_error("--doe", "required: a training checkpoint or a height-map file");
+  const std::string doe_file = args.option("--doe", "");
+  const auto material = optics::Material::load(cfg.optics.material);
+  const Inputs in = read_doe(cfg, material, doe_file);
+  const bool sweep = args.has("--tolerance");
+  const std::string& out = args.out_dir;
+  int64_t m = 0;
+  while ((int64_t(1) << m) < cfg.fabrication.levels) ++m;
+  std::vector<std::string> outputs{out + "/height_map.png", out + "/height_map.tif", out + "/height_map.json",
+                                   out + "/masks.gds", out + "/fabrication.json", out + "/fabrication.md",
+                                   out + "/fabrication.png"};
+  for (int64_t k = 0; k < m; ++k) outputs.push_back(out + "/mask_" + std::to_string(k) + ".png");
+  if (sweep)
+    for (const char* f : {"/tolerance.json", "/tolerance.md", "/tolerance.png"}) outputs.push_back(out + f);
+  {  // the pitch must be a whole number of GDSII database units (1 nm)
+    const double nm = cfg.optics.doe_pitch_m * 1e9;
+    if (std::fabs(nm - std::round(nm)) > 1e-6 * nm)
+      input_error("config key optics.doe_pitch_m", "must be a whole number of nanometres for GDSII, got " + c10::str(cfg.optics.doe_pitch_m));
+  }
+  setup_threads(cfg.threads);
+  make_dirs(out);
+  check_output_paths(outputs);
+  log::info("DOE " + doe_file + (in.checkpoint ? " (checkpoint)" : " (height map)") + ": " +
+            std::to_string(cfg.optics.doe_samples) + "^2 cells, period " + fmt(in.max_height_m * 1e9) + " nm, " +
+            std::to_string(cfg.fabrication.levels) + " levels");
+  Export ex = export_doe(args, cfg, material, in, doe_file);
+  if (sweep) {
+    Json t = tolerance(args, cfg, material, in, doe_file, ex.q, ex.markdown);
+    write_text_file(out + "/tolerance.json", t.dump(2) + "\n");
+  }
+  write_text_file(out + "/fabrication.json", ex.report.dump(2) + "\n");
+  write_text_file(out + "/fabrication.md", ex.markdown);
+  if (sweep) write_text_file(out + "/tolerance.md", ex.markdown.substr(ex.markdown.find("\n# Tolerance") + 1));
+  write_resolved_config(cfg, out);
+  const int64_t below = ex.report["features_below_min"].get<int64_t>();
+  log::info("levels " + std::to_string(cfg.fabrication.levels) + ", quantisation RMS " +
+            fmt(ex.report["quantisation_rms_m"].get<double>() * 1e9, 3) + " nm, PSF change " +
+            fmt(ex.report["quantisation_psf_rel_l1_mean"].get<double>(), 3) + "; smallest feature " +
+            (ex.report["min_feature_m"].is_null() ? std::string("none") : fmt(ex.report["min_feature_m"].get<double>() * 1e6, 3) + " um") +
+            (below > 0 ? ", " + std::to_string(below) + " features below fabrication.min_feature_m (flagged in fabrication.md)" : ""));
+  log::info("wrote height_map.{png,tif,json}, mask_0.." + std::to_string(m - 1) + ".png, masks.gds, fabrication.{json,md,png}" +
+            std::string(sweep ? ", tolerance.{json,md,png}" : "") + " to " + out);
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  AppSpec spec{"hsd_fabricate", kUsage, {"--doe"}, {"--tolerance"}, true, true};
+  return run_app(spec, argc, argv, run);
+}
