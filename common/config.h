@@ -195,7 +195,8 @@ struct TrainConfig {
   // height map the optics see is the DOE perturbed by random errors of these
   // scales (etch depth e ~ N(0, height_scale_error²), new roughness of this
   // RMS, edge blur σ ~ U(0, edge_blur_m), decentre ~ U(0, decentre_m) in a
-  // random direction); the gradient passes straight through to the DOE.
+  // random direction); the gradient flows through the errors to the DOE
+  // (docs/fabrication.md says why not straight through).
   // All 0 = off. misalignment_m must be 0 (it needs the level masks).
   FabricationErrorConfig fabrication_noise;
 };

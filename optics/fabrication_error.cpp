@@ -29,17 +29,18 @@ torch::Tensor refine_cells(const torch::Tensor& map, int64_t s) {
 }
 
 namespace {
-// Whole-sample shift along `dim` by n (zeros move in).
+// Whole-sample shift along `dim` (0 rows, 1 columns) by n, zeros moving in:
+// padding and a slice, so autograd passes through.
 torch::Tensor shift_whole(const torch::Tensor& m, int64_t n, int64_t dim) {
   const int64_t len = m.size(dim);
   if (n == 0) return m;
-  torch::Tensor out = torch::zeros_like(m);
-  if (std::llabs(n) >= len) return out;
-  if (n > 0)
-    out.narrow(dim, n, len - n).copy_(m.narrow(dim, 0, len - n));
-  else
-    out.narrow(dim, 0, len + n).copy_(m.narrow(dim, -n, len + n));
-  return out;
+  if (std::llabs(n) >= len) return torch::zeros_like(m);
+  namespace F = torch::nn::functional;
+  const int64_t a = std::llabs(n);
+  // F::pad takes (left, right, top, bottom) for the last two axes.
+  std::vector<int64_t> pad = dim == 1 ? std::vector<int64_t>{a, a, 0, 0} : std::vector<int64_t>{0, 0, a, a};
+  const torch::Tensor p = F::pad(m.unsqueeze(0), F::PadFuncOptions(pad))[0];
+  return p.narrow(dim, n > 0 ? 0 : 2 * a, len);
 }
 torch::Tensor shift_axis(const torch::Tensor& m, double d, int64_t dim) {
   if (d == 0.0) return m;
@@ -74,8 +75,9 @@ torch::Tensor fabricated_surface(const torch::Tensor& height_m, const Fabricatio
       }
       h = h + mk * (double(int64_t(1) << k) * q.step_m);
     }
+    h = h.to(height_m.device());
   } else {
-    h = refine_cells(height_m.detach().to(torch::kCPU, torch::kFloat64), s);
+    h = refine_cells(height_m.to(torch::kFloat64), s);  // differentiable in height_m
   }
   if (err.decentre_m > 0.0)
     h = shift_map(h, err.decentre_m * std::sin(p.decentre_angle_rad) / sub, err.decentre_m * std::cos(p.decentre_angle_rad) / sub);
@@ -86,7 +88,7 @@ torch::Tensor fabricated_surface(const torch::Tensor& height_m, const Fabricatio
     torch::Tensor r = at::normal(0.0, 1.0, height_m.sizes(), gen, torch::TensorOptions().dtype(torch::kFloat64));
     r = gaussian_blur_2d(refine_cells(r, s), err.roughness_correlation_m / sub);
     const double rms = r.pow(2).mean().sqrt().item<double>();
-    h = h + r * (err.roughness_rms_m / std::max(rms, 1e-300));
+    h = h + (r * (err.roughness_rms_m / std::max(rms, 1e-300))).to(h.device());
   }
   return h.clamp_min(0.0).to(height_m.scalar_type()).to(height_m.device());
 }

@@ -44,20 +44,18 @@ uint64_t mix(uint64_t a, uint64_t b) {
 
 // train.fabrication_noise: the height map the optics see in training step
 // `step`, the DOE perturbed by one random draw of fabrication errors (the same
-// on every rank: seeded by the run's seed and the step), with the gradient
-// passed straight through to the DOE (optics/fabrication_error.h).
+// on every rank: seeded by the run's seed and the step). The gradient flows
+// through the errors (blur, scale and shift are linear in the map, roughness
+// adds to it), so the DOE follows the gradient of the loss averaged over the
+// errors; a straight-through gradient (identity) made the DOE finer and more
+// fragile under edge rounding (docs/fabrication.md).
 torch::Tensor with_fabrication_noise(const torch::Tensor& h, const Config& cfg, const optics::Doe& doe, int64_t step) {
   const FabricationErrorConfig& scales = cfg.train.fabrication_noise;
   if (optics::no_fabrication_error(scales)) return h;
   std::mt19937_64 rng(mix(cfg.seed ^ 0xFAB0FAB0ull, uint64_t(step)));
   double angle = 0;
   const FabricationErrorConfig e = optics::draw_fabrication_error(scales, rng, &angle);
-  torch::Tensor fab;
-  {
-    torch::NoGradGuard no_grad;
-    fab = optics::fabricated_surface(h.detach(), e, {doe.pitch_m(), 1, doe.max_height_m(), 0, angle}, rng());
-  }
-  return h + (fab - h.detach());
+  return optics::fabricated_surface(h, e, {doe.pitch_m(), 1, doe.max_height_m(), 0, angle}, rng());
 }
 constexpr uint64_t kValSeed = 0x5EEDULL;
 
