@@ -88,9 +88,14 @@ torch::Tensor simulate(const optics::PsfSimulator& sim, const torch::Tensor& hei
   return sim.compute(height).psf.to(torch::kFloat64);
 }
 
-std::pair<double, double> rel_l1(const torch::Tensor& psf, const torch::Tensor& reference) {
-  const torch::Tensor r = optics::compare_psfs(psf, reference).rel_l1;
-  return {r.mean().item<double>(), r.max().item<double>()};
+struct PsfChange {
+  double l1_mean = 0, l1_max = 0;  // relative L1 over bands and depths
+  double shift_px = 0;             // mean centroid shift [px] (a decentre mostly moves the PSF)
+};
+PsfChange psf_change(const torch::Tensor& psf, const torch::Tensor& reference) {
+  const optics::PsfMismatch m = optics::compare_psfs(psf, reference);
+  return {m.rel_l1.mean().item<double>(), m.rel_l1.max().item<double>(),
+          m.centroid_shift_px.pow(2).sum(-1).sqrt().mean().item<double>()};
 }
 
 // A picture of the fabrication: the design's heights, the quantised map, the
@@ -210,7 +215,8 @@ Export export_doe(const AppArgs& args, const Config& cfg, const optics::Material
   const optics::PsfSimulator sim(optics::make_psf_spec(cfg.optics, material, torch::kCPU));
   log::info("PSFs of the design and of its " + std::to_string(K) + "-level map");
   const torch::Tensor psf_design = simulate(sim, in.height), psf_q = simulate(sim, optics::level_heights(ex.q));
-  const auto [q_l1_mean, q_l1_max] = rel_l1(psf_q, psf_design);
+  const PsfChange qc = psf_change(psf_q, psf_design);
+  const double q_l1_mean = qc.l1_mean, q_l1_max = qc.l1_max;
   write_fabrication_png(out + "/fabrication.png", in.height, ex.q, masks, H);
 
   Json& j = ex.report;
@@ -319,28 +325,29 @@ Json tolerance(const AppArgs& args, const Config& cfg, const optics::Material& m
           fmt(design_net.second, 3) + " m; through the " + std::to_string(cfg.fabrication.levels) + "-level map: " +
           fmt(ref_net.first) + " dB, " + fmt(ref_net.second, 3) + " m (test split)";
   md += ". Surfaces on " + std::to_string(s) + "x" + std::to_string(s) + " sub-cells per DOE cell.\n\n";
-  md += "| error | size | PSF rel. L1 mean | max | CRLB | HS PSNR [dB] | depth RMSE [m] |\n|---|---|---|---|---|---|---|\n";
+  md += "| error | size | PSF rel. L1 mean | max | centroid shift [px] | CRLB | HS PSNR [dB] | depth RMSE [m] |\n"
+        "|---|---|---|---|---|---|---|---|\n";
   log::Progress progress("tolerance", long(total));
   for (const auto& sw : sweeps) {
     Json r;
     r["kind"] = sw.kind;
     r["size_label"] = sw.size_label;
     r["sizes"] = sw.sizes;
-    std::vector<double> l1_mean, l1_max, cr, psnr, rmse;
+    std::vector<double> l1_mean, l1_max, shift, cr, psnr, rmse;
     for (size_t i = 0; i < sw.sizes.size(); ++i) {
       const torch::Tensor surface =
           optics::fabricated_surface(hq, optics::tolerance_error(sw, sw.sizes[i], T), process, cfg.seed + 1000);
       const torch::Tensor psf = simulate(sim, surface);
-      const auto [a, b] = rel_l1(psf, ref_psf);
-      l1_mean.push_back(a), l1_max.push_back(b), cr.push_back(crlb(surface));
+      const PsfChange c = psf_change(psf, ref_psf);
+      l1_mean.push_back(c.l1_mean), l1_max.push_back(c.l1_max), shift.push_back(c.shift_px), cr.push_back(crlb(surface));
       const auto net = sw.sizes[i] == 0.0 ? ref_net : network(psf);
       psnr.push_back(net.first), rmse.push_back(net.second);
-      md += "| " + sw.size_label + " | " + fmt(sw.sizes[i] * sw.unit_scale, 3) + " | " + fmt(a, 3) + " | " + fmt(b, 3) + " | " +
-            fmt(cr.back(), 3) + " | " + (trainer ? fmt(net.first) : std::string("-")) + " | " +
+      md += "| " + sw.size_label + " | " + fmt(sw.sizes[i] * sw.unit_scale, 3) + " | " + fmt(c.l1_mean, 3) + " | " +
+            fmt(c.l1_max, 3) + " | " + fmt(c.shift_px, 3) + " | " + fmt(cr.back(), 3) + " | " + (trainer ? fmt(net.first) : std::string("-")) + " | " +
             (trainer ? fmt(net.second, 3) : std::string("-")) + " |\n";
       progress.step();
     }
-    r["psf_rel_l1_mean"] = l1_mean, r["psf_rel_l1_max"] = l1_max, r["crlb_aggregate"] = cr;
+    r["psf_rel_l1_mean"] = l1_mean, r["psf_rel_l1_max"] = l1_max, r["psf_centroid_shift_px"] = shift, r["crlb_aggregate"] = cr;
     if (trainer) r["hs_psnr_db"] = psnr, r["depth_rmse_m"] = rmse;
     rows.push_back(r);
     std::vector<double> x;

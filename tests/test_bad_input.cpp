@@ -376,3 +376,30 @@ TEST_CASE("bad input: hsd_calibrate, PSF files, init checkpoints and --camera-ps
       {F.cfg + " --set optics.psf_source=file:" + b.string() + "/none.pt --out " + out, 2, "none.pt", out + "/sensor.exr"},
   });
 }
+
+TEST_CASE("bad input: hsd_fabricate refuses missing, NaN and mismatched DOEs and bad fabrication keys, writing nothing", "[app][bad_input][fabrication]") {
+  Fixture& F = fixture();
+  REQUIRE(F.ok);
+  const fs::path b = F.base / "fab";
+  fs::remove_all(b);
+  fs::create_directories(b);
+  const std::string out = (b / "out").string(), gds = out + "/masks.gds";
+  TensorDict d = load_tensor_dict(F.ckpt);
+  d["height_map_m"] = torch::zeros({32, 32});
+  save_tensor_dict((b / "small.pt").string(), d);
+  d = load_tensor_dict(F.ckpt);
+  d["height_map_m"][3][4] = std::nanf("");
+  save_tensor_dict((b / "nan.pt").string(), d);
+  check_table("hsd_fabricate", {
+      {F.cfg + " --out " + out, 2, "--doe", gds},
+      {F.cfg + " --doe " + b.string() + "/none.pt --out " + out, 2, "none.pt", gds},
+      {F.cfg + " --doe " + b.string() + "/small.pt --out " + out, 2, "small.pt", gds},
+      {F.cfg + " --doe " + b.string() + "/nan.pt --out " + out, 2, "nan.pt", gds},
+      {F.cfg + " --doe " + F.ckpt + " --set fabrication.levels=6 --out " + out, 2, "fabrication.levels", gds},
+      {F.cfg + " --doe " + F.ckpt + " --set fabrication.cell_name=\"my cell\" --out " + out, 2, "fabrication.cell_name", gds},
+      {F.cfg + " --doe " + F.ckpt + " --set fabrication.tolerance.edge_blur_m=[0,2e-06,1e-06] --tolerance --out " + out, 2,
+       "fabrication.tolerance.edge_blur_m", gds},
+      {F.cfg + " --doe " + F.ckpt + " --set optics.doe_pitch_m=8.0005e-06 --out " + out, 2, "optics.doe_pitch_m", gds},
+      {F.cfg + " --doe " + F.ckpt + " --tolerance yes --out " + out, 2, "yes", gds},
+  });
+}
