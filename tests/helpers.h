@@ -2,7 +2,9 @@
 #pragma once
 #include <array>
 #include <cstdio>
+#include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <string>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -55,6 +57,25 @@ inline std::string tiny_run_sets(const std::filesystem::path& data_root) {
          " --set train.val_patches=2 --set data.patch_size_px=16 --set data.generator.train_scenes=2"
          " --set data.generator.val_scenes=1 --set data.generator.test_scenes=1 --set data.generator.width_px=48"
          " --set data.generator.height_px=40";
+}
+
+// Column `col` of a metrics.csv (header skipped), one value per row; NaN
+// where the row leaves the column empty.
+inline std::vector<double> csv_column(const std::filesystem::path& csv, size_t col) {
+  std::ifstream f(csv);
+  std::string line;
+  std::getline(f, line);
+  std::vector<double> v;
+  while (std::getline(f, line)) {
+    std::vector<std::string> c;
+    std::string cell;
+    for (char ch : line + ",") {
+      if (ch == ',') c.push_back(cell), cell.clear();
+      else cell += ch;
+    }
+    v.push_back(c.size() > col && !c[col].empty() ? std::stod(c[col]) : std::nan(""));
+  }
+  return v;
 }
 
 // Apps as a user runs them: from the source folder, stdout dropped.

@@ -275,20 +275,10 @@ TEST_CASE("train.init_checkpoint and a PSF file: fine-tuning starts exactly wher
                                 " --set train.init_checkpoint=" + ckpt + " --out " + (base / "b").string());
   INFO(b.err);
   REQUIRE(b.code == 0);
-  auto val_losses = [](const fs::path& csv) {
-    std::ifstream f(csv);
-    std::string line;
-    std::getline(f, line);
+  auto val_losses = [](const fs::path& csv) {  // the rows with a validation loss
     std::vector<double> v;
-    while (std::getline(f, line)) {
-      std::vector<std::string> c;
-      std::string cell;
-      for (char ch : line + ",") {
-        if (ch == ',') c.push_back(cell), cell.clear();
-        else cell += ch;
-      }
-      if (c.size() > 3 && !c[3].empty()) v.push_back(std::stod(c[3]));
-    }
+    for (double x : test::csv_column(csv, 3))
+      if (!std::isnan(x)) v.push_back(x);
     return v;
   };
   const std::vector<double> va = val_losses(base / "a/metrics.csv"), vb = val_losses(base / "b/metrics.csv");

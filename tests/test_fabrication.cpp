@@ -387,22 +387,7 @@ TEST_CASE("train.fabrication_noise: the same run sees other PSFs in training, va
   INFO(b.err);
   REQUIRE(b.code == 0);
   // Column 2 is train_loss, 3 val_loss; row 1 is step 0's validation, then steps.
-  auto column = [](const fs::path& csv, size_t col) {
-    std::ifstream f(csv);
-    std::string line;
-    std::getline(f, line);
-    std::vector<double> v;
-    while (std::getline(f, line)) {
-      std::vector<std::string> c;
-      std::string cell;
-      for (char ch : line + ",") {
-        if (ch == ',') c.push_back(cell), cell.clear();
-        else cell += ch;
-      }
-      v.push_back(c.size() > col && !c[col].empty() ? std::stod(c[col]) : std::nan(""));
-    }
-    return v;
-  };
+  const auto column = test::csv_column;
   const auto ta = column(base / "a/metrics.csv", 2), tb = column(base / "b/metrics.csv", 2);
   const auto va = column(base / "a/metrics.csv", 3), vb = column(base / "b/metrics.csv", 3);
   REQUIRE(ta.size() >= 2);
