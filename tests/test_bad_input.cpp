@@ -76,6 +76,13 @@ struct Fixture {
   // One folder per test process: ctest -j runs the cases of this file side by side.
   fs::path base = fs::temp_directory_path() / ("hsd_test_bad_input_" + std::to_string(::getpid()));
   std::string sets, cfg, ckpt, model;
+  // An empty folder `name` below base for one test case's files.
+  fs::path fresh_folder(const std::string& name) const {
+    const fs::path d = base / name;
+    fs::remove_all(d);
+    fs::create_directories(d);
+    return d;
+  }
   ~Fixture() {
     std::error_code ec;
     fs::remove_all(base, ec);
@@ -299,9 +306,7 @@ TEST_CASE("bad input: hsd_import, hsd_bench and hsd_ablate refuse inconsistent f
 TEST_CASE("bad input: hsd_calibrate, PSF files, init checkpoints and --camera-psf are refused naming the file or key", "[app][bad_input][calibration]") {
   Fixture& F = fixture();
   REQUIRE(F.ok);
-  const fs::path b = F.base / "cal";
-  fs::remove_all(b);
-  fs::create_directories(b);
+  const fs::path b = F.fresh_folder("cal");
   const std::string caps = (b / "caps").string(), out = (b / "out").string();
   REQUIRE(run("hsd_calibrate " + F.cfg + " --set calibration.synthetic.exposures=1 --make-captures --out " + caps).code == 0);
   // Doctored capture folders: each a copy of the good one with one thing wrong.
@@ -380,9 +385,7 @@ TEST_CASE("bad input: hsd_calibrate, PSF files, init checkpoints and --camera-ps
 TEST_CASE("bad input: hsd_fabricate refuses missing, NaN and mismatched DOEs and bad fabrication keys, writing nothing", "[app][bad_input][fabrication]") {
   Fixture& F = fixture();
   REQUIRE(F.ok);
-  const fs::path b = F.base / "fab";
-  fs::remove_all(b);
-  fs::create_directories(b);
+  const fs::path b = F.fresh_folder("fab");
   const std::string out = (b / "out").string(), gds = out + "/masks.gds";
   TensorDict d = load_tensor_dict(F.ckpt);
   d["height_map_m"] = torch::zeros({32, 32});
