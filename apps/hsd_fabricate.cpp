@@ -77,7 +77,7 @@ Inputs read_doe(const Config& cfg, const optics::Material& material, const std::
   Inputs in;
   const TensorDict d = load_tensor_dict(file);
   in.checkpoint = d.count("doe.raw") && d.count("step");
-  const torch::Tensor h = optics::load_height_file(file, cfg.optics.doe_samples, cfg.optics.doe_pitch_m);
+  const torch::Tensor h = optics::height_from_dict(d, file, cfg.optics.doe_samples, cfg.optics.doe_pitch_m);
   in.max_height_m = optics::doe_max_height_m(cfg.optics, material, h);
   in.height = torch::remainder(h, in.max_height_m);
   return in;
@@ -330,17 +330,20 @@ Json tolerance(const AppArgs& args, const Config& cfg, const optics::Material& m
   log::Progress progress("tolerance", long(total));
   for (const auto& sw : sweeps) {
     Json r;
-    r["kind"] = sw.kind;
+    r["kind"] = sw.name;
     r["size_label"] = sw.size_label;
     r["sizes"] = sw.sizes;
     std::vector<double> l1_mean, l1_max, shift, cr, psnr, rmse;
     for (size_t i = 0; i < sw.sizes.size(); ++i) {
+      // Size 0 is the reference surface itself (fabricated_surface is exact there): its row is the reference's.
+      const bool zero = sw.sizes[i] == 0.0;
       const torch::Tensor surface =
-          optics::fabricated_surface(hq, optics::tolerance_error(sw, sw.sizes[i], T), process, cfg.seed + 1000);
-      const torch::Tensor psf = simulate(sim, surface);
-      const PsfChange c = psf_change(psf, ref_psf);
-      l1_mean.push_back(c.l1_mean), l1_max.push_back(c.l1_max), shift.push_back(c.shift_px), cr.push_back(crlb(surface));
-      const auto net = sw.sizes[i] == 0.0 ? ref_net : network(psf);
+          zero ? ref_surface : optics::fabricated_surface(hq, optics::tolerance_error(sw, sw.sizes[i], T), process, cfg.seed + 1000);
+      const torch::Tensor psf = zero ? ref_psf : simulate(sim, surface);
+      const PsfChange c = zero ? PsfChange{} : psf_change(psf, ref_psf);
+      l1_mean.push_back(c.l1_mean), l1_max.push_back(c.l1_max), shift.push_back(c.shift_px);
+      cr.push_back(zero ? ref_crlb : crlb(surface));
+      const auto net = zero ? ref_net : network(psf);
       psnr.push_back(net.first), rmse.push_back(net.second);
       md += "| " + sw.size_label + " | " + fmt(sw.sizes[i] * sw.unit_scale, 3) + " | " + fmt(c.l1_mean, 3) + " | " +
             fmt(c.l1_max, 3) + " | " + fmt(c.shift_px, 3) + " | " + fmt(cr.back(), 3) + " | " + (trainer ? fmt(net.first) : std::string("-")) + " | " +
@@ -353,7 +356,7 @@ Json tolerance(const AppArgs& args, const Config& cfg, const optics::Material& m
     std::vector<double> x;
     for (double v : sw.sizes) x.push_back(v * sw.unit_scale);
     auto plot = [&](const std::string& name, const std::string& title, const std::vector<double>& y) {
-      const std::string f = args.out_dir + "/.tol_" + sw.kind + "_" + name + ".png";
+      const std::string f = args.out_dir + "/.tol_" + sw.name + "_" + name + ".png";
       train::write_line_plot(f, title, sw.size_label, {{title, x, y, {150, 60, 20}}}, false);
       plots.push_back(f);
     };
@@ -377,8 +380,7 @@ int run(const AppArgs& args) {
   const Inputs in = read_doe(cfg, material, doe_file);
   const bool sweep = args.has("--tolerance");
   const std::string& out = args.out_dir;
-  int64_t m = 0;
-  while ((int64_t(1) << m) < cfg.fabrication.levels) ++m;
+  const int64_t m = optics::level_mask_count(cfg.fabrication.levels);
   std::vector<std::string> outputs{out + "/height_map.png", out + "/height_map.tif", out + "/height_map.json",
                                    out + "/masks.gds", out + "/fabrication.json", out + "/fabrication.md",
                                    out + "/fabrication.png"};

@@ -59,7 +59,10 @@ void save_height_file(const std::string& path, const torch::Tensor& height_m, do
 }
 
 torch::Tensor load_height_file(const std::string& path, int64_t expected_n, double expected_pitch_m) {
-  const TensorDict d = load_tensor_dict(path);
+  return height_from_dict(load_tensor_dict(path), path, expected_n, expected_pitch_m);
+}
+
+torch::Tensor height_from_dict(const TensorDict& d, const std::string& path, int64_t expected_n, double expected_pitch_m) {
   const torch::Tensor h = dict_get(d, "height_map_m", path);
   const torch::Tensor p = dict_get(d, "doe_pitch_m", path);
   if (h.dim() != 2 || h.size(0) != h.size(1) || !h.is_floating_point())

@@ -8,6 +8,7 @@
 #include <torch/types.h>
 
 #include "common/config.h"
+#include "common/tensor_io.h"
 #include "optics/material.h"
 
 namespace hsd::optics {
@@ -37,6 +38,8 @@ torch::Tensor random_height(int64_t n, double max_height_m, uint64_t seed);
 void save_height_file(const std::string& path, const torch::Tensor& height_m, double doe_pitch_m);
 // Loads and checks it against the expected grid; InputError naming the file otherwise.
 torch::Tensor load_height_file(const std::string& path, int64_t expected_n, double expected_pitch_m);
+// The same from a dict already read from `path` (e.g. a checkpoint, whose other entries the caller wants too).
+torch::Tensor height_from_dict(const TensorDict& d, const std::string& path, int64_t expected_n, double expected_pitch_m);
 
 // The initial height map named by cfg.doe.init (float64 [N, N]).
 torch::Tensor initial_height(const OpticsConfig& cfg, const Material& material, uint64_t seed);

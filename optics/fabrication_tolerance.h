@@ -10,8 +10,11 @@
 
 namespace hsd::optics {
 
+enum class FabricationErrorKind { etch_depth, roughness_white, roughness_correlated, misalignment, edge_rounding, decentre };
+
 struct ToleranceSweep {
-  std::string kind;           // etch_depth, roughness_white, roughness_correlated, misalignment, edge_rounding, decentre
+  FabricationErrorKind kind;
+  std::string name;           // the kind as written to tolerance.json: etch_depth, roughness_white, ...
   std::string size_label;     // what a size is, with its unit, for tables and plots
   double unit_scale = 1.0;    // size × unit_scale = the number shown (e.g. 1e9 for nm)
   std::vector<double> sizes;  // SI (relative for etch_depth)

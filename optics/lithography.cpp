@@ -19,9 +19,14 @@ LevelMap quantize_to_levels(const torch::Tensor& height_m, double max_height_m, 
 
 torch::Tensor level_heights(const LevelMap& q) { return q.level.to(torch::kFloat64) * q.step_m; }
 
-torch::Tensor level_masks(const LevelMap& q) {
+int64_t level_mask_count(int64_t levels) {
   int64_t m = 0;
-  while ((int64_t(1) << m) < q.levels) ++m;
+  while ((int64_t(1) << m) < levels) ++m;
+  return m;
+}
+
+torch::Tensor level_masks(const LevelMap& q) {
+  const int64_t m = level_mask_count(q.levels);
   std::vector<torch::Tensor> masks;
   for (int64_t k = 0; k < m; ++k) masks.push_back(torch::bitwise_and(q.level, int64_t(1) << k).ne(0));
   return torch::stack(masks);

@@ -32,6 +32,9 @@ LevelMap quantize_to_levels(const torch::Tensor& height_m, double max_height_m, 
 // The quantised heights q·Δ, float64 [N, N].
 torch::Tensor level_heights(const LevelMap& q);
 
+// m = log2 K, the number of binary masks of K levels.
+int64_t level_mask_count(int64_t levels);
+
 // The m = log2 K binary masks, bool [m, N, N]: masks[k] = bit k of q.
 torch::Tensor level_masks(const LevelMap& q);
 

@@ -49,6 +49,13 @@ double polygon_area(const std::vector<double>& xy) {
   return std::fabs(a) / 2.0;
 }
 
+// Layer k + 1 = mask k, as hsd_fabricate numbers them.
+std::vector<optics::GdsLayer> gds_layers(const torch::Tensor& masks) {
+  std::vector<optics::GdsLayer> layers;
+  for (int64_t k = 0; k < masks.size(0); ++k) layers.push_back({k + 1, optics::mask_rectangles(masks[k])});
+  return layers;
+}
+
 fs::path scratch(const std::string& name) {
   const fs::path d = fs::temp_directory_path() / ("hsd_test_fab_" + name + "_" + std::to_string(::getpid()));
   fs::remove_all(d);
@@ -139,8 +146,7 @@ TEST_CASE("GDSII: reals in excess-64 form, and masks read back by libGDSII with 
   const double pitch = 4e-6;
   const optics::LevelMap q = optics::quantize_to_levels(uniform_heights(N, 1e-6, 11), 1e-6, 8);
   const torch::Tensor masks = optics::level_masks(q);
-  std::vector<optics::GdsLayer> layers;
-  for (int64_t k = 0; k < masks.size(0); ++k) layers.push_back({k + 1, optics::mask_rectangles(masks[k])});
+  const std::vector<optics::GdsLayer> layers = gds_layers(masks);
   const fs::path dir = scratch("gds");
   const std::string file = (dir / "masks.gds").string();
   write_binary_file(file, optics::gdsii_bytes(layers, N, pitch, "HSD_DOE", "HSD"));
@@ -176,8 +182,7 @@ TEST_CASE("GDSII: gdspy (a second independent reader) finds the layers and the m
   const int64_t N = 32;
   const optics::LevelMap q = optics::quantize_to_levels(uniform_heights(N, 1e-6, 5), 1e-6, 4);
   const torch::Tensor masks = optics::level_masks(q);
-  std::vector<optics::GdsLayer> layers;
-  for (int64_t k = 0; k < masks.size(0); ++k) layers.push_back({k + 1, optics::mask_rectangles(masks[k])});
+  const std::vector<optics::GdsLayer> layers = gds_layers(masks);
   const fs::path dir = scratch("gdspy");
   const std::string file = (dir / "masks.gds").string();
   write_binary_file(file, optics::gdsii_bytes(layers, N, 8e-6, "MYCELL", "HSD"));
@@ -258,7 +263,7 @@ TEST_CASE("fabricated surface: each error is zero at zero size and its PSF chang
       if (size == 0.0) CHECK(torch::equal(surface, ref_surface));
       change.push_back(optics::compare_psfs(sim.compute(surface).psf.to(torch::kFloat64), ref).rel_l1.mean().item<double>());
     }
-    INFO(sw.kind << ": " << change[0] << " " << change[1] << " " << change[2] << " " << change[3]);
+    INFO(sw.name << ": " << change[0] << " " << change[1] << " " << change[2] << " " << change[3]);
     CHECK(change[0] == 0.0);
     for (size_t i = 1; i < change.size(); ++i) CHECK(change[i] > change[i - 1]);
   }
