@@ -356,15 +356,21 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
       return psf_cut;
     };
   const auto gens = image_generators(mix(cfg_.seed ^ 0xA5A5A5A5ull, uint64_t(step)), batch.first_index, batch.radiance.size(0));
-  const torch::Tensor h = fixed_psf_ ? doe_.height() : with_fabrication_noise(doe_.height(), cfg_, doe_, step);
+  const torch::Tensor design = doe_.height();
+  const torch::Tensor h = fixed_psf_ ? design : with_fabrication_noise(design, cfg_, doe_, step);
   // The pre-inversion needs every layer's PSFs: computed once (through the
   // provider, so profiling and data-parallel sharing see one call) and handed
-  // to the sensor model as slices of the same stack.
+  // to the sensor model as slices of the same stack. Under fabrication noise
+  // the camera images through the perturbed surface but deconvolves with the
+  // design's PSFs, as a fabricated camera that does not know its errors does
+  // (and as hsd_fabricate --tolerance evaluates it): those are a second call
+  // (profiling times it with the sensor forward).
   const bool pre = net_->options().preinverse_layers > 0;
   torch::Tensor rgb_psf;
   if (pre) {
     const torch::Tensor all = provider ? provider(h, all_layers(), all_bands()) : psf_->compute(h).psf;
-    rgb_psf = model::camera_rgb_psfs(all, sensor_.omega);
+    const torch::Tensor known = h.is_same(design) ? all : psf_->compute(design).psf;
+    rgb_psf = model::camera_rgb_psfs(known, sensor_.omega);
     provider = optics::fixed_psf_provider(all);
   }
   const optics::SensorImage img =
