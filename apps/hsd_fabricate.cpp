@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <random>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -262,6 +263,63 @@ Export export_doe(const AppArgs& args, const Config& cfg, const optics::Material
   return ex;
 }
 
+// fabrication.tolerance.draws: the errors together, drawn as training draws
+// them (optics::draw_fabrication_error) from draw_scales; draw d is seeded by
+// d alone, so every DOE meets the same surfaces' errors. Per draw and as mean
+// ± SD: PSF change, CRLB and the network's loss against the reference.
+template <class Crlb, class Network>
+Json random_draws(const FabricationToleranceConfig& T, const torch::Tensor& hq, optics::FabricationProcess process,
+                  const optics::PsfSimulator& sim, const torch::Tensor& ref_psf, const std::pair<double, double>& ref_net,
+                  const Crlb& crlb, const Network& network, bool with_network, std::string& md, log::Progress& progress) {
+  const auto& E = T.draw_scales;
+  md += "\n## Random draws\n\n" + std::to_string(T.draws) + " draws of the errors together (as `train.fabrication_noise` draws them): etch-depth error ~ N(0, " +
+        fmt(100 * E.height_scale_error) + " %), roughness " + fmt(E.roughness_rms_m * 1e9) + " nm RMS over " +
+        fmt(E.roughness_correlation_m * 1e6) + " um, edge blur sigma ~ U(0, " + fmt(E.edge_blur_m * 1e6) + " um), decentre ~ U(0, " +
+        fmt(E.decentre_m * 1e6) + " um). Draw d is seeded by d alone: every DOE meets the same draws. Losses against the reference (no error).\n\n";
+  md += "| draw | etch [%] | edge blur [um] | decentre [um] | PSF rel. L1 mean | CRLB | HS PSNR loss [dB] | depth RMSE loss [m] |\n"
+        "|---|---|---|---|---|---|---|---|\n";
+  Json rows = Json::array();
+  std::vector<double> l1, cr, dpsnr, drmse;
+  for (int64_t d = 0; d < T.draws; ++d) {
+    std::mt19937_64 rng(0xD4A3'0000ull + uint64_t(d));
+    double angle = 0;
+    const FabricationErrorConfig e = optics::draw_fabrication_error(E, rng, &angle);
+    process.decentre_angle_rad = angle;
+    const torch::Tensor surface = optics::fabricated_surface(hq, e, process, rng());
+    const torch::Tensor psf = simulate(sim, surface);
+    const PsfChange c = psf_change(psf, ref_psf);
+    const auto net = network(psf);
+    l1.push_back(c.l1_mean), cr.push_back(crlb(surface));
+    dpsnr.push_back(ref_net.first - net.first), drmse.push_back(net.second - ref_net.second);
+    rows.push_back({{"height_scale_error", e.height_scale_error}, {"edge_blur_m", e.edge_blur_m}, {"decentre_m", e.decentre_m},
+                    {"psf_rel_l1_mean", c.l1_mean}, {"crlb_aggregate", cr.back()}, {"hs_psnr_db", net.first}, {"depth_rmse_m", net.second}});
+    md += "| " + std::to_string(d) + " | " + fmt(100 * e.height_scale_error, 3) + " | " + fmt(e.edge_blur_m * 1e6, 3) + " | " +
+          fmt(e.decentre_m * 1e6, 3) + " | " + fmt(c.l1_mean, 3) + " | " + fmt(cr.back(), 3) + " | " +
+          (with_network ? fmt(dpsnr.back(), 3) : std::string("-")) + " | " + (with_network ? fmt(drmse.back(), 4) : std::string("-")) + " |\n";
+    progress.step();
+  }
+  auto mean_sd = [](const std::vector<double>& v) {
+    double m = 0, q = 0;
+    for (double x : v) m += x;
+    m /= double(v.size());
+    for (double x : v) q += (x - m) * (x - m);
+    return std::pair<double, double>{m, v.size() > 1 ? std::sqrt(q / double(v.size() - 1)) : 0.0};
+  };
+  const auto [l1m, l1s] = mean_sd(l1);
+  const auto [crm, crs] = mean_sd(cr);
+  const auto [pm, ps] = mean_sd(dpsnr);
+  const auto [rm, rs] = mean_sd(drmse);
+  md += "| mean ± SD | | | | " + fmt(l1m, 3) + " ± " + fmt(l1s, 2) + " | " + fmt(crm, 3) + " ± " + fmt(crs, 2) + " | " +
+        (with_network ? fmt(pm, 3) + " ± " + fmt(ps, 2) : std::string("-")) + " | " +
+        (with_network ? fmt(rm, 4) + " ± " + fmt(rs, 2) : std::string("-")) + " |\n";
+  Json j{{"scales", {{"height_scale_error", E.height_scale_error}, {"roughness_rms_m", E.roughness_rms_m},
+                     {"roughness_correlation_m", E.roughness_correlation_m}, {"edge_blur_m", E.edge_blur_m}, {"decentre_m", E.decentre_m}}},
+         {"rows", rows}, {"psf_rel_l1_mean", {{"mean", l1m}, {"sd", l1s}}}, {"crlb_aggregate", {{"mean", crm}, {"sd", crs}}}};
+  if (with_network)
+    j["hs_psnr_loss_db"] = {{"mean", pm}, {"sd", ps}}, j["depth_rmse_loss_m"] = {{"mean", rm}, {"sd", rs}};
+  return j;
+}
+
 // The tolerance sweep; returns its JSON and appends its markdown.
 Json tolerance(const AppArgs& args, const Config& cfg, const optics::Material& material, const Inputs& in,
                const std::string& doe_file, const optics::LevelMap& q, std::string& md) {
@@ -300,7 +358,7 @@ Json tolerance(const AppArgs& args, const Config& cfg, const optics::Material& m
   auto crlb = [&](const torch::Tensor& surface) { return optics::crlb_report(g, material, surface, fs).aggregate.item<double>(); };
 
   const auto sweeps = optics::tolerance_sweeps(T);
-  int64_t total = 0;
+  int64_t total = T.draws;
   for (const auto& sw : sweeps) total += int64_t(sw.sizes.size());
   log::info("tolerance sweep: " + std::to_string(total) + " fabricated surfaces on " + std::to_string(N * s) + "^2 sub-cells (" +
             std::to_string(s) + "x" + std::to_string(s) + " per DOE cell)" + (trainer ? ", each evaluated by the network" : ""));
@@ -364,6 +422,7 @@ Json tolerance(const AppArgs& args, const Config& cfg, const optics::Material& m
     plot("crlb", "CRLB (" + cfg.fisher.aggregate + ")", cr);
     if (trainer) plot("psnr", "HS PSNR [dB]", psnr), plot("rmse", "depth RMSE [m]", rmse);
   }
+  if (T.draws > 0) j["draws"] = random_draws(T, hq, process, sim, ref_psf, ref_net, crlb, network, trainer != nullptr, md, progress);
   progress.finish();
   j["sweeps"] = rows;
   j["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

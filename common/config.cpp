@@ -464,6 +464,13 @@ Config parse_config(const Json& resolved) {
       T.subsamples = t->get_int("subsamples", T.subsamples);
       if (T.subsamples < 1 || T.subsamples > 16) t->fail("subsamples", "must be in [1, 16]");
       T.network = t->get_bool("network", T.network);
+      T.draws = t->get_int("draws", T.draws);
+      if (T.draws < 0 || T.draws > 1000) t->fail("draws", "must be in [0, 1000] (0 = off)");
+      if (auto n = t->optional_child("draw_scales")) {
+        parse_fabrication_error(*n, T.draw_scales);
+        if (T.draw_scales.misalignment_m != 0.0) n->fail("misalignment_m", "must be 0 (drawn as train.fabrication_noise draws; sweep it alone instead)");
+        if (T.draw_scales.height_scale_error < 0.0) n->fail("height_scale_error", "is the standard deviation of the drawn error here: must be >= 0");
+      }
     }
   }
   if (auto k = r.optional_child("calibration")) {

@@ -223,6 +223,13 @@ struct FabricationToleranceConfig {
   // edges by steps of doe_pitch_m / s (the cells' heights are unchanged).
   int64_t subsamples = 4;
   bool network = true;  // with a checkpoint and its data: HS PSNR and depth RMSE at every size (the test split)
+  // Random draws of the errors together, drawn as train.fabrication_noise
+  // draws them from draw_scales (etch σ 10 %, correlated roughness 20 nm over
+  // 16 µm, edge blur σ ~ U(0, 8 µm): configs/quick_fab_robust.json's noise):
+  // the mean loss under a fab's errors. The draws depend on their index only,
+  // so every DOE and run meets the same ones. 0 = off.
+  int64_t draws = 8;
+  FabricationErrorConfig draw_scales{0.1, 20e-9, 16e-6, 8e-6, 0.0, 0.0};
 };
 
 // hsd_fabricate: the K-level lithography of a height map (optics/lithography.h).

@@ -323,7 +323,7 @@ TEST_CASE("hsd_fabricate: PNG, TIFF and GDSII of a DOE, masks rebuild its levels
                                 doe_file + " --tolerance --set fabrication.tolerance.height_scale_error=[0,0.1]"
                                 " --set fabrication.tolerance.roughness_rms_m=[0,2e-08] --set fabrication.tolerance.misalignment_m=[0,2e-06]"
                                 " --set fabrication.tolerance.edge_blur_m=[0,2e-06] --set fabrication.tolerance.decentre_m=[0,1.6e-05]"
-                                " --set fabrication.tolerance.subsamples=2 --out " + out);
+                                " --set fabrication.tolerance.subsamples=2 --set fabrication.tolerance.draws=3 --out " + out);
   INFO(r.err);
   REQUIRE(r.code == 0);
   for (const char* f : {"height_map.png", "height_map.tif", "height_map.json", "mask_0.png", "mask_1.png", "mask_2.png", "masks.gds",
@@ -378,6 +378,32 @@ TEST_CASE("hsd_fabricate: PNG, TIFF and GDSII of a DOE, masks rebuild its levels
     CHECK(sw["psf_rel_l1_mean"][0].get<double>() == 0.0);
     CHECK(sw["psf_rel_l1_mean"][1].get<double>() > 1e-4);
     CHECK(std::isfinite(sw["crlb_aggregate"][1].get<double>()));
+  }
+  // The random draws: each a change, each of its own size, within the scales.
+  const Json& draws = tol["draws"]["rows"];
+  REQUIRE(draws.size() == 3);
+  for (const Json& d : draws) {
+    CHECK(d["psf_rel_l1_mean"].get<double>() > 1e-4);
+    CHECK(d["edge_blur_m"].get<double>() >= 0.0);
+    CHECK(d["edge_blur_m"].get<double>() <= 8e-6);
+    CHECK(d["decentre_m"].get<double>() == 0.0);
+  }
+  CHECK(draws[0]["height_scale_error"] != draws[1]["height_scale_error"]);
+  CHECK(tol["draws"]["psf_rel_l1_mean"]["sd"].get<double>() > 0.0);
+  // Another run's seed meets the same draws (they are seeded by their index alone).
+  const std::string out2 = (dir / "fab2").string();
+  const test::Run r2 = test::run("hsd_fabricate " + cfg + " --set seed=7 --set fabrication.levels=8 --doe " + doe_file +
+                                 " --tolerance --set fabrication.tolerance.draws=3 --set fabrication.tolerance.subsamples=2" +
+                                 " --set fabrication.tolerance.height_scale_error=[0] --set fabrication.tolerance.roughness_rms_m=[0]" +
+                                 " --set fabrication.tolerance.misalignment_m=[0] --set fabrication.tolerance.edge_blur_m=[0]" +
+                                 " --set fabrication.tolerance.decentre_m=[0] --out " + out2);
+  INFO(r2.err);
+  REQUIRE(r2.code == 0);
+  const Json tol2 = Json::parse(read_text_file(out2 + "/tolerance.json"));
+  REQUIRE(tol2["draws"]["rows"].size() == 3);
+  for (size_t d = 0; d < 3; ++d) {
+    CHECK(tol2["draws"]["rows"][d]["height_scale_error"] == draws[d]["height_scale_error"]);
+    CHECK(tol2["draws"]["rows"][d]["edge_blur_m"] == draws[d]["edge_blur_m"]);
   }
   fs::remove_all(dir);
 }

@@ -21,6 +21,9 @@ inline constexpr const char* kText =
     "  depth, white and correlated roughness, mask misalignment, edge rounding,\n"
     "  decentre), each against the fabricated design without error: PSF change,\n"
     "  point-source CRLB and, for a checkpoint with its dataset, HS PSNR and depth\n"
-    "  RMSE on the test split. Writes DIR/tolerance.json, .md and .png.";
+    "  RMSE on the test split; then fabrication.tolerance.draws random draws of the\n"
+    "  errors together (drawn as train.fabrication_noise draws them, from\n"
+    "  fabrication.tolerance.draw_scales; the same draws for every DOE), their\n"
+    "  losses as mean +- SD. Writes DIR/tolerance.json, .md and .png.";
 
 }  // namespace hsd::usage
