@@ -26,7 +26,7 @@
 #include "common/log.h"
 #include "common/subprocess.h"
 #include "train/metrics_csv.h"
-#include "train/plot.h"
+#include "viz/plot.h"
 #include "usage/hsd_ablate.h"
 
 using namespace hsd;
@@ -55,8 +55,9 @@ void run_or_fail(const std::vector<std::string>& argv, const std::string& what) 
 // (wall_s, val_loss) pairs of a metrics.csv.
 std::vector<std::pair<double, double>> val_curve(const std::string& csv) {
   std::vector<std::pair<double, double>> out;
-  for (const auto& c : train::read_csv_rows(csv))
-    if (c.size() > 3 && !c[3].empty()) out.emplace_back(std::atof(c[1].c_str()), std::atof(c[3].c_str()));
+  const train::CsvTable t = train::read_csv_table(csv);
+  for (size_t r = 0; r < t.rows.size(); ++r)
+    if (!t.cell(r, "val_loss").empty()) out.emplace_back(t.number(r, "wall_s"), t.number(r, "val_loss"));
   return out;
 }
 
@@ -119,7 +120,7 @@ int run(const AppArgs& args) {
                                            "baseline_wiener_hs_psnr_db", "baseline_wiener_hs_ssim",
                                            "baseline_constant_depth_rmse_m", "baseline_constant_depth_mae_m"};
   std::map<std::string, std::map<std::string, std::vector<double>>> results;  // arm -> metric -> per seed
-  std::vector<train::Series> curves;
+  std::vector<viz::Series> curves;
   const std::vector<std::array<int, 3>> colours{{40, 40, 200}, {40, 160, 40}, {200, 120, 30}, {20, 20, 20}, {160, 160, 160}};
   const auto t0 = std::chrono::steady_clock::now();
   for (size_t a = 0; a < arms.size(); ++a) {
@@ -145,7 +146,7 @@ int run(const AppArgs& args) {
           results[arms[a].name][k].push_back(m.at(k).get<double>());
         }
       const auto c = val_curve(dir + "/run/metrics.csv");
-      train::Series s{arms[a].name + (seeds.size() > 1 ? " s" + std::to_string(seed) : ""), {}, {}, colours[a]};
+      viz::Series s{arms[a].name + (seeds.size() > 1 ? " s" + std::to_string(seed) : ""), {}, {}, colours[a]};
       for (const auto& [t, v] : c) s.x.push_back(t), s.y.push_back(v);
       curves.push_back(s);
     }
@@ -239,7 +240,7 @@ int run(const AppArgs& args) {
   md += "\n![validation loss against wall-clock time](error_vs_time.png)\n";
   write_text_file(args.out_dir + "/ablation.csv", csv);
   write_text_file(args.out_dir + "/ablation.md", md);
-  train::write_line_plot(args.out_dir + "/error_vs_time.png", "validation loss against wall-clock time", "seconds", curves, true);
+  viz::write_line_plot(args.out_dir + "/error_vs_time.png", "validation loss against wall-clock time", "seconds", curves, true);
   write_resolved_config(cfg, args.out_dir);
   std::printf("%s", md.c_str());
   return 0;

@@ -19,12 +19,12 @@
 #include "optics/doe.h"
 #include "optics/fabrication_error.h"
 #include "optics/psf.h"
-#include "optics/psf_atlas.h"
 #include "optics/psf_calibration.h"
 #include "optics/psf_file.h"
 #include "optics/psf_mismatch.h"
 #include "optics/spectrum.h"
 #include "optics/synthetic_captures.h"
+#include "viz/psf_atlas.h"
 #include "usage/hsd_calibrate.h"
 
 using namespace hsd;
@@ -143,8 +143,8 @@ void write_mismatch_png(const std::string& path, const torch::Tensor& measured, 
     const torch::Tensor c = t.contiguous();
     return cv::Mat(int(c.size(0)), int(c.size(1)), CV_8UC3, c.data_ptr<uint8_t>()).clone();
   };
-  const cv::Mat a = to_mat(optics::render_psf_atlas(measured, spec.wavelengths_m, spec.depths_m));
-  const cv::Mat b = to_mat(optics::render_psf_atlas(simulated, spec.wavelengths_m, spec.depths_m));
+  const cv::Mat a = to_mat(viz::render_psf_atlas(measured, spec.wavelengths_m, spec.depths_m));
+  const cv::Mat b = to_mat(viz::render_psf_atlas(simulated, spec.wavelengths_m, spec.depths_m));
   const int gap = 16, title = 30;
   cv::Mat img(std::max(a.rows, b.rows) + title, a.cols + gap + b.cols, CV_8UC3, cv::Scalar(255, 255, 255));
   a.copyTo(img(cv::Rect(0, title, a.cols, a.rows)));

@@ -14,7 +14,7 @@
 #include "common/error.h"
 #include "common/log.h"
 #include "train/metrics_csv.h"
-#include "train/plot.h"
+#include "viz/plot.h"
 #include "usage/hsd_curves.h"
 
 using namespace hsd;
@@ -37,8 +37,7 @@ std::vector<std::string> split_list(const std::string& s, const std::string& fla
 
 struct Run {
   std::string name, csv;
-  std::vector<std::string> header;
-  std::vector<std::vector<std::string>> rows;
+  train::CsvTable table;
 };
 
 int run(const AppArgs& args) {
@@ -52,14 +51,9 @@ int run(const AppArgs& args) {
     if (r.name.empty() || r.name == ".") r.name = fs::path(d).lexically_normal().parent_path().filename().string();
     r.csv = (fs::path(d) / "metrics.csv").string();
     if (!fs::is_regular_file(r.csv)) input_error(r.csv, "no such file (--runs takes hsd_train output folders)");
-    std::ifstream in(r.csv);
-    std::string header;
-    std::getline(in, header);
-    r.header = train::split_csv_line(header);
-    r.rows = train::read_csv_rows(r.csv);
+    r.table = train::read_csv_table(r.csv);
     for (const auto& c : columns)
-      if (std::find(r.header.begin(), r.header.end(), c) == r.header.end())
-        input_error(r.csv, "has no column \"" + c + "\" (--columns)");
+      if (!r.table.has(c)) input_error(r.csv, "has no column \"" + c + "\" (--columns)");
     runs.push_back(std::move(r));
   }
   check_output_paths({args.out_dir + "/curves.png", args.out_dir + "/curves.md"});
@@ -73,25 +67,21 @@ int run(const AppArgs& args) {
   table += "\n";
   std::vector<std::vector<double>> last(runs.size(), std::vector<double>(columns.size(), std::nan("")));
   for (size_t ci = 0; ci < columns.size(); ++ci) {
-    std::vector<train::Series> series;
+    std::vector<viz::Series> series;
     for (size_t ri = 0; ri < runs.size(); ++ri) {
       const Run& r = runs[ri];
-      const size_t col = size_t(std::find(r.header.begin(), r.header.end(), columns[ci]) - r.header.begin());
-      const size_t step_col = size_t(std::find(r.header.begin(), r.header.end(), "step") - r.header.begin());
-      train::Series s{r.name, {}, {}, colours[ri % colours.size()]};
-      for (const auto& row : r.rows) {
-        if (col >= row.size() || step_col >= row.size() || row[col].empty()) continue;
-        char* end = nullptr;
-        const double y = std::strtod(row[col].c_str(), &end);
-        if (end == row[col].c_str() || !std::isfinite(y)) continue;
-        s.x.push_back(std::strtod(row[step_col].c_str(), nullptr));
+      viz::Series s{r.name, {}, {}, colours[ri % colours.size()]};
+      for (size_t k = 0; k < r.table.rows.size(); ++k) {
+        const double y = r.table.number(k, columns[ci]), x = r.table.number(k, "step");
+        if (!std::isfinite(y) || !std::isfinite(x)) continue;
+        s.x.push_back(x);
         s.y.push_back(y);
       }
       if (!s.y.empty()) last[ri][ci] = s.y.back();
       series.push_back(std::move(s));
     }
     const std::string f = args.out_dir + "/" + columns[ci] + ".png";
-    train::write_line_plot(f, columns[ci], "step", series, false);
+    viz::write_line_plot(f, columns[ci], "step", series, false);
     pieces.push_back(f);
   }
   for (size_t ri = 0; ri < runs.size(); ++ri) {
@@ -112,7 +102,7 @@ int run(const AppArgs& args) {
     fs::copy_file(p, c, fs::copy_options::overwrite_existing);
     copies.push_back(c);
   }
-  train::write_montage(copies, int(std::min<size_t>(3, copies.size())), 1.0, args.out_dir + "/curves.png");
+  viz::write_montage(copies, int(std::min<size_t>(3, copies.size())), 1.0, args.out_dir + "/curves.png");
   write_text_file(args.out_dir + "/curves.md", "# Runs compared (hsd_curves)\n\nIn brackets: the difference from the first run's last value.\n\n" + table);
   std::printf("%s", table.c_str());
   log::info("wrote " + args.out_dir + "/curves.png, curves.md and one PNG per column");

@@ -1,5 +1,5 @@
 // hsd_eval: metrics and pictures of a trained system on a split
-// (train/evaluator.h): DIR/metrics.json (CONTRACT.md keys, per scene and
+// (train/evaluator.h): DIR/metrics.json (docs/interfaces.md keys, per scene and
 // mean), DIR/report.md, per-scene comparisons and spectra, the ColorChecker
 // spectral plot and the DOE's PSF atlas.
 #include <cmath>
@@ -14,10 +14,10 @@
 #include "common/log.h"
 #include "data/manifest.h"
 #include "model/torchscript_export.h"
-#include "optics/psf_source.h"
 #include "optics/doe.h"
 #include "optics/psf.h"
 #include "optics/psf_file.h"
+#include "optics/psf_source.h"
 #include "optics/sensor.h"
 #include "train/evaluator.h"
 #include "train/trainer.h"

@@ -1,5 +1,5 @@
 // hsd_export: a training checkpoint -> DIR/reconstructor.pt, a TorchScript
-// module (model/torchscript_export.h; CONTRACT.md signature) loadable by
+// module (model/torchscript_export.h; docs/interfaces.md signature) loadable by
 // torch::jit::load and Python's torch.jit.load, plus the optics the model
 // expects: DIR/doe_height.pt (height-map file), DIR/psf_atlas.png and
 // DIR/config.json.
@@ -16,8 +16,8 @@
 #include "common/log.h"
 #include "model/torchscript_export.h"
 #include "optics/doe.h"
-#include "optics/psf_atlas.h"
 #include "train/trainer.h"
+#include "viz/psf_atlas.h"
 #include "usage/hsd_export.h"
 
 using namespace hsd;
@@ -66,7 +66,7 @@ int run(const AppArgs& args) {
   make_dirs(args.out_dir);
   write_atomically(path, [&](const std::string& tmp) { m.save(tmp); });
   optics::save_height_file(args.out_dir + "/doe_height.pt", h, cfg.optics.doe_pitch_m);
-  optics::write_psf_atlas(args.out_dir + "/psf_atlas.png", psfs, trainer.psf().spec().wavelengths_m,
+  viz::write_psf_atlas(args.out_dir + "/psf_atlas.png", psfs, trainer.psf().spec().wavelengths_m,
                           trainer.psf().spec().depths_m);
   write_resolved_config(cfg, args.out_dir);
   log::info("wrote " + path + " (load with torch.jit.load / torch::jit::load), doe_height.pt, psf_atlas.png, config.json");

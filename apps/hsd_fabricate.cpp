@@ -19,6 +19,7 @@
 #include "common/error.h"
 #include "common/log.h"
 #include "common/tensor_io.h"
+#include "common/text_format.h"
 #include "optics/doe.h"
 #include "optics/fabrication_error.h"
 #include "optics/fabrication_tolerance.h"
@@ -30,8 +31,8 @@
 #include "optics/psf_mismatch.h"
 #include "optics/psf_source.h"
 #include "train/evaluator.h"
-#include "train/plot.h"
 #include "train/trainer.h"
+#include "viz/plot.h"
 #include "usage/hsd_fabricate.h"
 
 using namespace hsd;
@@ -39,12 +40,6 @@ using namespace hsd;
 namespace {
 
 const char* kUsage = usage::kText;
-
-std::string fmt(double v, int digits = 4) {
-  char b[64];
-  std::snprintf(b, sizeof b, "%.*g", digits, v);
-  return b;
-}
 
 // Images are encoded in memory and written whole (OpenCV picks the format by
 // the extension, which the atomic writer's temporary name does not keep).
@@ -240,22 +235,22 @@ Export export_doe(const AppArgs& args, const Config& cfg, const optics::Material
 
   std::string& md = ex.markdown;
   md += "# Fabrication report\n\n";
-  md += "DOE `" + doe_file + "`: " + std::to_string(N) + "x" + std::to_string(N) + " cells of " + fmt(pitch * 1e6) +
-        " um, heights wrapped into [0, " + fmt(H * 1e9) + " nm) (" + cfg.optics.material + "), " + std::to_string(K) +
-        " levels of " + fmt(ex.q.step_m * 1e9) + " nm made by " + std::to_string(m) + " binary masks.\n\n";
+  md += "DOE `" + doe_file + "`: " + std::to_string(N) + "x" + std::to_string(N) + " cells of " + format_g(pitch * 1e6) +
+        " um, heights wrapped into [0, " + format_g(H * 1e9) + " nm) (" + cfg.optics.material + "), " + std::to_string(K) +
+        " levels of " + format_g(ex.q.step_m * 1e9) + " nm made by " + std::to_string(m) + " binary masks.\n\n";
   md += "| quantity | value |\n|---|---|\n";
-  md += "| quantisation error (RMS, phase-equivalent) | " + fmt(qrms * 1e9) + " nm (" + fmt(2.0 * M_PI * qrms / H, 3) + " rad) |\n";
-  md += "| first-order efficiency of " + std::to_string(K) + " levels, sinc^2(1/K) | " + fmt(eff, 4) + " |\n";
-  md += "| PSF change from quantisation, rel. L1 mean / max | " + fmt(q_l1_mean, 3) + " / " + fmt(q_l1_max, 3) + " |\n";
-  md += "| smallest feature found | " + (std::isfinite(min_feature) ? fmt(min_feature * 1e6) + " um" : std::string("none")) + " |\n";
-  md += "| process minimum (fabrication.min_feature_m) | " + fmt(F.min_feature_m * 1e6) + " um |\n";
+  md += "| quantisation error (RMS, phase-equivalent) | " + format_g(qrms * 1e9) + " nm (" + format_g(2.0 * M_PI * qrms / H, 3) + " rad) |\n";
+  md += "| first-order efficiency of " + std::to_string(K) + " levels, sinc^2(1/K) | " + format_g(eff, 4) + " |\n";
+  md += "| PSF change from quantisation, rel. L1 mean / max | " + format_g(q_l1_mean, 3) + " / " + format_g(q_l1_max, 3) + " |\n";
+  md += "| smallest feature found | " + (std::isfinite(min_feature) ? format_g(min_feature * 1e6) + " um" : std::string("none")) + " |\n";
+  md += "| process minimum (fabrication.min_feature_m) | " + format_g(F.min_feature_m * 1e6) + " um |\n";
   md += "| features below the minimum | " + std::to_string(below) + (below > 0 ? " **(flagged)**" : "") + " |\n\n";
   md += "| mask | GDS layer | etch depth [nm] | covered | rectangles | min line [um] | min space [um] | lines / spaces below min |\n";
   md += "|---|---|---|---|---|---|---|---|\n";
   for (const Json& r : mask_rows) {
-    auto um = [&](const Json& v) { return v.is_null() ? std::string("-") : fmt(v.get<double>() * 1e6); };
+    auto um = [&](const Json& v) { return v.is_null() ? std::string("-") : format_g(v.get<double>() * 1e6); };
     md += "| " + std::to_string(r["mask"].get<int64_t>()) + " | " + std::to_string(r["gds_layer"].get<int64_t>()) + " | " +
-          fmt(r["etch_depth_m"].get<double>() * 1e9) + " | " + fmt(100.0 * r["covered_fraction"].get<double>(), 3) + " % | " +
+          format_g(r["etch_depth_m"].get<double>() * 1e9) + " | " + format_g(100.0 * r["covered_fraction"].get<double>(), 3) + " % | " +
           std::to_string(r["rectangles"].get<int64_t>()) + " | " + um(r["min_line_m"]) + " | " + um(r["min_space_m"]) + " | " +
           std::to_string(r["lines_below_min"].get<int64_t>()) + " / " + std::to_string(r["spaces_below_min"].get<int64_t>()) + " |\n";
   }
@@ -273,9 +268,9 @@ Json random_draws(const FabricationToleranceConfig& T, const torch::Tensor& hq, 
                   const Crlb& crlb, const Network& network, bool with_network, std::string& md, log::Progress& progress) {
   const auto& E = T.draw_scales;
   md += "\n## Random draws\n\n" + std::to_string(T.draws) + " draws of the errors together (as `train.fabrication_noise` draws them): etch-depth error ~ N(0, " +
-        fmt(100 * E.height_scale_error) + " %), roughness " + fmt(E.roughness_rms_m * 1e9) + " nm RMS over " +
-        fmt(E.roughness_correlation_m * 1e6) + " um, edge blur sigma ~ U(0, " + fmt(E.edge_blur_m * 1e6) + " um), decentre ~ U(0, " +
-        fmt(E.decentre_m * 1e6) + " um). Draw d is seeded by d alone: every DOE meets the same draws. Losses against the reference (no error).\n\n";
+        format_g(100 * E.height_scale_error) + " %), roughness " + format_g(E.roughness_rms_m * 1e9) + " nm RMS over " +
+        format_g(E.roughness_correlation_m * 1e6) + " um, edge blur sigma ~ U(0, " + format_g(E.edge_blur_m * 1e6) + " um), " +
+        (E.decentre_m > 0 ? "decentre ~ U(0, " + format_g(E.decentre_m * 1e6) + " um)" : std::string("no decentre")) + ". Draw d is seeded by d alone: every DOE meets the same draws. Losses against the reference (no error).\n\n";
   md += "| draw | etch [%] | edge blur [um] | decentre [um] | PSF rel. L1 mean | CRLB | HS PSNR loss [dB] | depth RMSE loss [m] |\n"
         "|---|---|---|---|---|---|---|---|\n";
   Json rows = Json::array();
@@ -293,9 +288,10 @@ Json random_draws(const FabricationToleranceConfig& T, const torch::Tensor& hq, 
     dpsnr.push_back(ref_net.first - net.first), drmse.push_back(net.second - ref_net.second);
     rows.push_back({{"height_scale_error", e.height_scale_error}, {"edge_blur_m", e.edge_blur_m}, {"decentre_m", e.decentre_m},
                     {"psf_rel_l1_mean", c.l1_mean}, {"crlb_aggregate", cr.back()}, {"hs_psnr_db", net.first}, {"depth_rmse_m", net.second}});
-    md += "| " + std::to_string(d) + " | " + fmt(100 * e.height_scale_error, 3) + " | " + fmt(e.edge_blur_m * 1e6, 3) + " | " +
-          fmt(e.decentre_m * 1e6, 3) + " | " + fmt(c.l1_mean, 3) + " | " + fmt(cr.back(), 3) + " | " +
-          (with_network ? fmt(dpsnr.back(), 3) : std::string("-")) + " | " + (with_network ? fmt(drmse.back(), 4) : std::string("-")) + " |\n";
+    md += "| " + std::to_string(d) + " | " + format_g(100 * e.height_scale_error, 3) + " | " + format_g(e.edge_blur_m * 1e6, 3) + " | " +
+          format_g(e.decentre_m * 1e6, 3) + " | " + format_g(c.l1_mean, 3) + " | " + format_g(cr.back(), 3) + " | " +
+          (with_network ? format("%+.3f", dpsnr.back()) : std::string("-")) + " | " +
+          (with_network ? format("%+.4f", drmse.back()) : std::string("-")) + " |\n";
     progress.step();
   }
   auto mean_sd = [](const std::vector<double>& v) {
@@ -309,9 +305,9 @@ Json random_draws(const FabricationToleranceConfig& T, const torch::Tensor& hq, 
   const auto [crm, crs] = mean_sd(cr);
   const auto [pm, ps] = mean_sd(dpsnr);
   const auto [rm, rs] = mean_sd(drmse);
-  md += "| mean ± SD | | | | " + fmt(l1m, 3) + " ± " + fmt(l1s, 2) + " | " + fmt(crm, 3) + " ± " + fmt(crs, 2) + " | " +
-        (with_network ? fmt(pm, 3) + " ± " + fmt(ps, 2) : std::string("-")) + " | " +
-        (with_network ? fmt(rm, 4) + " ± " + fmt(rs, 2) : std::string("-")) + " |\n";
+  md += "| mean ± SD | | | | " + format_g(l1m, 3) + " ± " + format_g(l1s, 2) + " | " + format_g(crm, 3) + " ± " + format_g(crs, 2) + " | " +
+        (with_network ? format("%+.3f ± %.3f", pm, ps) : std::string("-")) + " | " +
+        (with_network ? format("%+.4f ± %.4f", rm, rs) : std::string("-")) + " |\n";
   Json j{{"scales", {{"height_scale_error", E.height_scale_error}, {"roughness_rms_m", E.roughness_rms_m},
                      {"roughness_correlation_m", E.roughness_correlation_m}, {"edge_blur_m", E.edge_blur_m}, {"decentre_m", E.decentre_m}}},
          {"rows", rows}, {"psf_rel_l1_mean", {{"mean", l1m}, {"sd", l1s}}}, {"crlb_aggregate", {{"mean", crm}, {"sd", crs}}}};
@@ -377,11 +373,11 @@ Json tolerance(const AppArgs& args, const Config& cfg, const optics::Material& m
   Json rows = Json::array();
   std::vector<std::string> plots;
   md += "\n# Tolerance\n\nEach error alone, against the " + std::to_string(cfg.fabrication.levels) +
-        "-level design without error (CRLB " + fmt(ref_crlb, 3) + " layers/bands, " + cfg.fisher.aggregate + ")";
+        "-level design without error (CRLB " + format_g(ref_crlb, 3) + " layers/bands, " + cfg.fisher.aggregate + ")";
   if (trainer)
-    md += "; the network through the design's own PSFs: HS PSNR " + fmt(design_net.first) + " dB, depth RMSE " +
-          fmt(design_net.second, 3) + " m; through the " + std::to_string(cfg.fabrication.levels) + "-level map: " +
-          fmt(ref_net.first) + " dB, " + fmt(ref_net.second, 3) + " m (test split)";
+    md += "; the network through the design's own PSFs: HS PSNR " + format_g(design_net.first) + " dB, depth RMSE " +
+          format_g(design_net.second, 3) + " m; through the " + std::to_string(cfg.fabrication.levels) + "-level map: " +
+          format_g(ref_net.first) + " dB, " + format_g(ref_net.second, 3) + " m (test split)";
   md += ". Surfaces on " + std::to_string(s) + "x" + std::to_string(s) + " sub-cells per DOE cell.\n\n";
   md += "| error | size | PSF rel. L1 mean | max | centroid shift [px] | CRLB | HS PSNR [dB] | depth RMSE [m] |\n"
         "|---|---|---|---|---|---|---|---|\n";
@@ -403,9 +399,9 @@ Json tolerance(const AppArgs& args, const Config& cfg, const optics::Material& m
       cr.push_back(zero ? ref_crlb : crlb(surface));
       const auto net = zero ? ref_net : network(psf);
       psnr.push_back(net.first), rmse.push_back(net.second);
-      md += "| " + sw.size_label + " | " + fmt(sw.sizes[i] * sw.unit_scale, 3) + " | " + fmt(c.l1_mean, 3) + " | " +
-            fmt(c.l1_max, 3) + " | " + fmt(c.shift_px, 3) + " | " + fmt(cr.back(), 3) + " | " + (trainer ? fmt(net.first) : std::string("-")) + " | " +
-            (trainer ? fmt(net.second, 3) : std::string("-")) + " |\n";
+      md += "| " + sw.size_label + " | " + format_g(sw.sizes[i] * sw.unit_scale, 3) + " | " + format_g(c.l1_mean, 3) + " | " +
+            format_g(c.l1_max, 3) + " | " + format_g(c.shift_px, 3) + " | " + format_g(cr.back(), 3) + " | " + (trainer ? format_g(net.first) : std::string("-")) + " | " +
+            (trainer ? format_g(net.second, 3) : std::string("-")) + " |\n";
       progress.step();
     }
     r["psf_rel_l1_mean"] = l1_mean, r["psf_rel_l1_max"] = l1_max, r["psf_centroid_shift_px"] = shift, r["crlb_aggregate"] = cr;
@@ -415,7 +411,7 @@ Json tolerance(const AppArgs& args, const Config& cfg, const optics::Material& m
     for (double v : sw.sizes) x.push_back(v * sw.unit_scale);
     auto plot = [&](const std::string& name, const std::string& title, const std::vector<double>& y) {
       const std::string f = args.out_dir + "/.tol_" + sw.name + "_" + name + ".png";
-      train::write_line_plot(f, title, sw.size_label, {{title, x, y, {150, 60, 20}}}, false);
+      viz::write_line_plot(f, title, sw.size_label, {{title, x, y, {150, 60, 20}}}, false);
       plots.push_back(f);
     };
     plot("l1", "PSF change (rel. L1, mean)", l1_mean);
@@ -426,7 +422,7 @@ Json tolerance(const AppArgs& args, const Config& cfg, const optics::Material& m
   progress.finish();
   j["sweeps"] = rows;
   j["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  train::write_montage(plots, trainer ? 4 : 2, 1.0, args.out_dir + "/tolerance.png");
+  viz::write_montage(plots, trainer ? 4 : 2, 1.0, args.out_dir + "/tolerance.png");
   md += "\n![tolerance](tolerance.png)\n";
   return j;
 }
@@ -455,7 +451,7 @@ int run(const AppArgs& args) {
   make_dirs(out);
   check_output_paths(outputs);
   log::info("DOE " + doe_file + (in.checkpoint ? " (checkpoint)" : " (height map)") + ": " +
-            std::to_string(cfg.optics.doe_samples) + "^2 cells, period " + fmt(in.max_height_m * 1e9) + " nm, " +
+            std::to_string(cfg.optics.doe_samples) + "^2 cells, period " + format_g(in.max_height_m * 1e9) + " nm, " +
             std::to_string(cfg.fabrication.levels) + " levels");
   Export ex = export_doe(args, cfg, material, in, doe_file);
   if (sweep) {
@@ -468,9 +464,9 @@ int run(const AppArgs& args) {
   write_resolved_config(cfg, out);
   const int64_t below = ex.report["features_below_min"].get<int64_t>();
   log::info("levels " + std::to_string(cfg.fabrication.levels) + ", quantisation RMS " +
-            fmt(ex.report["quantisation_rms_m"].get<double>() * 1e9, 3) + " nm, PSF change " +
-            fmt(ex.report["quantisation_psf_rel_l1_mean"].get<double>(), 3) + "; smallest feature " +
-            (ex.report["min_feature_m"].is_null() ? std::string("none") : fmt(ex.report["min_feature_m"].get<double>() * 1e6, 3) + " um") +
+            format_g(ex.report["quantisation_rms_m"].get<double>() * 1e9, 3) + " nm, PSF change " +
+            format_g(ex.report["quantisation_psf_rel_l1_mean"].get<double>(), 3) + "; smallest feature " +
+            (ex.report["min_feature_m"].is_null() ? std::string("none") : format_g(ex.report["min_feature_m"].get<double>() * 1e6, 3) + " um") +
             (below > 0 ? ", " + std::to_string(below) + " features below fabrication.min_feature_m (flagged in fabrication.md)" : ""));
   log::info("wrote height_map.{png,tif,json}, mask_0.." + std::to_string(m - 1) + ".png, masks.gds, fabrication.{json,md,png}" +
             std::string(sweep ? ", tolerance.{json,md,png}" : "") + " to " + out);

@@ -18,10 +18,10 @@
 #include "optics/fisher.h"
 #include "optics/fisher_design.h"
 #include "optics/psf.h"
-#include "optics/psf_atlas.h"
 #include "optics/scene_fisher.h"
 #include "optics/spectrum.h"
-#include "train/plot.h"
+#include "viz/plot.h"
+#include "viz/psf_atlas.h"
 #include "usage/hsd_fisher.h"
 
 using namespace hsd;
@@ -190,7 +190,7 @@ int run(const AppArgs& args) {
   std::printf("%s", table.c_str());
   std::vector<double> xs;
   for (size_t k = 0; k < d.curve.size(); ++k) xs.push_back(double(k));
-  train::write_line_plot(args.out_dir + "/fisher_curve.png", "aggregated CRLB during the Fisher design", "step",
+  viz::write_line_plot(args.out_dir + "/fisher_curve.png", "aggregated CRLB during the Fisher design", "step",
                          {{"fisher design", xs, d.curve, {200, 80, 30}},
                           {"fresnel", {0.0, xs.back()}, {r_fresnel.aggregate.item<double>(), r_fresnel.aggregate.item<double>()}, {40, 40, 200}},
                           {"spiral", {0.0, xs.back()}, {r_spiral.aggregate.item<double>(), r_spiral.aggregate.item<double>()}, {40, 160, 40}}},
@@ -199,7 +199,7 @@ int run(const AppArgs& args) {
   {
     torch::NoGradGuard ng;
     const optics::PsfSimulator sim(optics::make_psf_spec(cfg.optics, material, cpu));
-    optics::write_psf_atlas(args.out_dir + "/psf_atlas_fisher.png", sim.compute(h_full.to(torch::kFloat32)).psf,
+    viz::write_psf_atlas(args.out_dir + "/psf_atlas_fisher.png", sim.compute(h_full.to(torch::kFloat32)).psf,
                             sim.spec().wavelengths_m, sim.spec().depths_m);
   }
   write_resolved_config(cfg, args.out_dir);

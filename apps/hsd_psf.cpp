@@ -1,5 +1,5 @@
 // hsd_psf: a DOE (optics.doe.init) -> the hyperspectral-depth PSF stack.
-// Writes DIR/psf.pt (CONTRACT.md), DIR/psf_atlas.png, DIR/config.json and
+// Writes DIR/psf.pt (docs/interfaces.md), DIR/psf_atlas.png, DIR/config.json and
 // prints the energy-in-window table and any sampling warnings.
 #include <cmath>
 #include <cstdio>
@@ -12,13 +12,13 @@
 #include "common/tensor_io.h"
 #include "optics/depth_distinctness.h"
 #include "optics/doe.h"
-#include "optics/psf.h"
 #include "optics/off_axis_psf.h"
-#include "optics/psf_atlas.h"
+#include "optics/psf.h"
 #include "optics/psf_calibration.h"
 #include "optics/psf_file.h"
 #include "optics/sampling_check.h"
 #include "optics/spectrum.h"
+#include "viz/psf_atlas.h"
 #include "usage/hsd_psf.h"
 
 using namespace hsd;
@@ -106,7 +106,7 @@ int run_off_axis(const AppArgs& args, const Config& cfg, const optics::PsfSpec& 
   entries["field_angle_deg"] = torch::tensor(cfg.optics.field_angle_deg, torch::kFloat64);
   optics::write_psf_file(args.out_dir + "/psf.pt", entries, "simulated");
   write_text_file(args.out_dir + "/shift_variance.json", j.dump(2) + "\n");
-  optics::write_psf_atlas(args.out_dir + "/psf_atlas.png", off, spec.wavelengths_m, spec.depths_m);
+  viz::write_psf_atlas(args.out_dir + "/psf_atlas.png", off, spec.wavelengths_m, spec.depths_m);
   write_resolved_config(cfg, args.out_dir);
   log::info("wrote " + args.out_dir + "/psf.pt (off-axis), shift_variance.json, psf_atlas.png, config.json");
   return 0;
@@ -187,7 +187,7 @@ int run(const AppArgs& args) {
   TensorDict entries = optics::psf_file_entries(spec, out.psf, height, omega);
   entries["energy_in_window"] = energy.to(torch::kFloat32);
   optics::write_psf_file(args.out_dir + "/psf.pt", entries, "simulated");
-  optics::write_psf_atlas(args.out_dir + "/psf_atlas.png", out.psf, spec.wavelengths_m, spec.depths_m);
+  viz::write_psf_atlas(args.out_dir + "/psf_atlas.png", out.psf, spec.wavelengths_m, spec.depths_m);
   write_resolved_config(cfg, args.out_dir);
   log::info("wrote " + args.out_dir + "/psf.pt, psf_atlas.png, config.json");
   return 0;

@@ -10,15 +10,15 @@
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/log.h"
-#include "data/image_io.h"
 #include "data/band_resample.h"
+#include "data/image_io.h"
 #include "data/scene_exr.h"
 #include "optics/doe.h"
 #include "optics/psf.h"
-#include "optics/psf_atlas.h"
 #include "optics/psf_source.h"
 #include "optics/sensor.h"
 #include "optics/spectrum.h"
+#include "viz/psf_atlas.h"
 #include "usage/hsd_simulate.h"
 
 using namespace hsd;
@@ -91,7 +91,7 @@ int run(const AppArgs& args) {
   const torch::Tensor J = img.image[0].cpu();
   data::write_channels_exr(args.out_dir + "/sensor.exr", J, {"R", "G", "B"});
   data::write_srgb_png(args.out_dir + "/sensor.png", J, cfg.sensor.saturation > 0 ? cfg.sensor.saturation : 1.0);
-  optics::write_psf_atlas(args.out_dir + "/psf_atlas.png", img.psf, spec.wavelengths_m, used_depths);
+  viz::write_psf_atlas(args.out_dir + "/psf_atlas.png", img.psf, spec.wavelengths_m, used_depths);
   write_resolved_config(cfg, args.out_dir);
   const double t_write = since();
   log::info("seconds: scene read " + c10::str(t_read) + ", optics set-up " + c10::str(t_setup) + ", PSFs and image " +

@@ -1,7 +1,7 @@
 // Typed, validated experiment configuration. JSON is parsed here, once, at the
 // edge; the libraries below only ever see these structs. Units are in the key
 // names (SI unless the name says otherwise: *_m metres, *_nm nanometres).
-// The keys named in CONTRACT.md keep their meaning; see configs/base.json for
+// The keys named in docs/interfaces.md keep their meaning; see configs/base.json for
 // every key with its default.
 #pragma once
 #include <cstdint>
@@ -170,7 +170,7 @@ struct TrainConfig {
   int64_t warmup_steps = 50;        // linear warm-up of both rates
   std::string decay = "cosine";     // "cosine" (to min_lr_ratio at the last step) | "none"
   double min_lr_ratio = 0.05;
-  double clip_grad_norm = 1.0;      // per parameter group; 0 = off
+  double clip_grad_norm = 1.0;      // the network's gradient norm (not the DOE's); 0 = off
   bool freeze_doe = false;          // fixed-DOE ablations
   // A training checkpoint whose network weights start this run (fine-tuning,
   // e.g. on measured PSFs); "" = the network's own initialisation. Only the
@@ -259,7 +259,7 @@ struct SyntheticCaptureConfig {
 struct CalibrationConfig {
   // "auto": register to captures.json's axis_px when it gives one, else to each
   // slice's centroid; "centroid": every slice centred on its centroid
-  // (CONTRACT.md); "axis": every slice on axis_px (required).
+  // (docs/interfaces.md); "axis": every slice on axis_px (required).
   std::string registration = "auto";
   // The background under the PSF: "auto" ("dark" when captures.json gives
   // dark frames, else "ring"); "dark": the dark frames (taken with the source

@@ -1,10 +1,14 @@
-// The network as a self-contained TorchScript module (CONTRACT.md, "Exported
+// The network as a self-contained TorchScript module (docs/interfaces.md, "Exported
 // reconstructor"): forward(x [B, 3, H, W] linear sensor RGB) -> (hs [B, L, H, W],
 // depth [B, 1, H, W] metres). C++ cannot script a torch::nn::Module, so the
 // exporter writes HsdNet's forward pass as TorchScript source (generated for
 // its levels and normalisation, in eval mode) on a torch::jit::Module that
 // holds copies of the weights, the spectral-upsampling weights and the depth
-// mapping; inputs of any size are padded as HsdNet pads them.
+// mapping; inputs of any size are padded as HsdNet pads them. The forward
+// pass therefore exists twice, HsdNetImpl::forward (model/unet.cpp) and the
+// source written here (with the Wiener pre-inversion and fast FFT sizes): a
+// change to one must be made in the other; tests/test_export.cpp checks that
+// both give the same output for every normalisation and residual choice.
 #pragma once
 #include <map>
 #include <string>

@@ -25,8 +25,6 @@ class Material {
   // (see in_valid_range); throws InputError if the formula gives n² ≤ 0 there.
   double index(double wavelength_m) const;
   bool in_valid_range(double wavelength_m) const;
-  double valid_min_m() const { return valid_um_[0] * 1e-6; }
-  double valid_max_m() const { return valid_um_[1] * 1e-6; }
 
   // η at each wavelength; warns once per call naming the bands outside the
   // formula's valid range.

@@ -44,6 +44,14 @@ PsfSpec make_psf_spec(const OpticsConfig& cfg, const Material& material, torch::
   return s;
 }
 
+PsfSpec converged_reference(const PsfSpec& spec) {
+  PsfSpec r = spec;
+  r.real_dtype = torch::kFloat64;
+  r.pixel_nodes.assign(spec.pixel_nodes.size(), 8);
+  r.mft_rank_tol = 0.0;
+  return r;
+}
+
 std::vector<double> PsfSpec::spectral_wavelengths_m() const {
   const Quadrature1D q = gauss_legendre(int(spectral_samples));
   std::vector<double> out;

@@ -81,6 +81,12 @@ struct PsfSpec {
 // pixel_quadrature_tol), dtype from optics.precision.
 PsfSpec make_psf_spec(const OpticsConfig& cfg, const Material& material, torch::Device device);
 
+// The converged reference of a spec, what PSF accuracy is measured against
+// (hsd_bench psf/sim/accuracy, the accuracy tests): float64, 8 × 8 Gauss
+// nodes per pixel, the exact matrix Fourier transform (mft_rank_tol 0); the
+// pupil sampling and spectral samples as in `spec`.
+PsfSpec converged_reference(const PsfSpec& spec);
+
 struct PsfStack {
   torch::Tensor psf;               // [L, Z', P, P] real_dtype; each [l, z] slice sums to 1
   torch::Tensor energy_in_window;  // [L, Z'] float64, no grad: fraction of the light through the aperture in the window

@@ -5,16 +5,9 @@
 
 #include <torch/torch.h>
 
+#include "common/text_format.h"
 
 namespace hsd::optics {
-
-namespace {
-std::string fmt(const char* f, double a, double b = 0, double c = 0, double d = 0) {
-  char buf[256];
-  std::snprintf(buf, sizeof buf, f, a, b, c, d);
-  return buf;
-}
-}  // namespace
 
 SamplingReport check_sampling(const PsfSpec& spec, const torch::Tensor& energy_in_window, double energy_warn_threshold) {
   SamplingReport r;
@@ -33,7 +26,7 @@ SamplingReport check_sampling(const PsfSpec& spec, const torch::Tensor& energy_i
       const double step = k * delta * (half_width * curvature + window_edge / s);
       acc[l][z] = step;
       if (step > M_PI)
-        r.warnings.push_back(fmt("pupil undersampled at lambda = %.0f nm, z = %.4g m: phase step %.2f rad between "
+        r.warnings.push_back(format("pupil undersampled at lambda = %.0f nm, z = %.4g m: phase step %.2f rad between "
                                  "neighbouring pupil samples (> pi); raise optics.pupil_oversampling",
                                  lam * 1e9, spec.depths_m[size_t(z)], step));
     }
@@ -41,13 +34,13 @@ SamplingReport check_sampling(const PsfSpec& spec, const torch::Tensor& energy_i
     // ramp across a cell, B = k x δ/(2s); at the window edge it must stay small.
     const double b_edge = M_PI * double(spec.psf_size) * spec.pixel_pitch_m * delta / (2.0 * lam * s);
     if (spec.cell_sinc() && b_edge > 0.5)
-      r.warnings.push_back(fmt("cell integration at lambda = %.0f nm: the tilt's phase ramp across a pupil cell reaches "
+      r.warnings.push_back(format("cell integration at lambda = %.0f nm: the tilt's phase ramp across a pupil cell reaches "
                                "%.2f rad at the window edge (its expansion assumes << 1); raise optics.pupil_oversampling",
                                lam * 1e9, b_edge));
     const double period = lam * s / (delta * spec.pixel_pitch_m);
     r.period_pixels.push_back(period);
     if (period < double(spec.psf_size))
-      r.warnings.push_back(fmt("DOE grid aliasing at lambda = %.0f nm: the sampled pupil repeats the PSF every %.1f "
+      r.warnings.push_back(format("DOE grid aliasing at lambda = %.0f nm: the sampled pupil repeats the PSF every %.1f "
                                "pixels, less than the %.0f-pixel window; raise optics.pupil_oversampling",
                                lam * 1e9, period, double(spec.psf_size)));
   }
@@ -57,7 +50,7 @@ SamplingReport check_sampling(const PsfSpec& spec, const torch::Tensor& energy_i
     for (int64_t l = 0; l < e.size(0); ++l)
       for (int64_t z = 0; z < e.size(1); ++z)
         if (ea[l][z] < energy_warn_threshold)
-          r.warnings.push_back(fmt("only %.1f%% of the light reaches the %.0f-pixel window at lambda = %.0f nm, "
+          r.warnings.push_back(format("only %.1f%% of the light reaches the %.0f-pixel window at lambda = %.0f nm, "
                                    "z = %.4g m (optics.energy_warn_threshold); consider a larger optics.psf_size",
                                    100.0 * ea[l][z], double(spec.psf_size), spec.wavelengths_m[size_t(l)] * 1e9,
                                    spec.depths_m[size_t(z)]));

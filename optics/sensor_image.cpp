@@ -147,7 +147,7 @@ torch::Tensor layer_masks(const torch::Tensor& depth_m, const std::vector<double
 }
 
 torch::Tensor render_sensor_image(const torch::Tensor& radiance, const torch::Tensor& masks, const torch::Tensor& psf,
-                                  const torch::Tensor& omega, bool leave_out) {
+                                  const torch::Tensor& omega) {
   check_shapes(radiance, masks, psf, omega);
   const int64_t B = radiance.size(0), H = radiance.size(2), W = radiance.size(3);
   const int64_t Z = masks.size(1), P = psf.size(2), r = P / 2, C = omega.size(0);
@@ -156,7 +156,7 @@ torch::Tensor render_sensor_image(const torch::Tensor& radiance, const torch::Te
   std::vector<int64_t> bands;
   const torch::Tensor band_used = (omega.detach().abs().sum(0) > 0).cpu();
   for (int64_t l = 0; l < radiance.size(1); ++l)
-    if (!leave_out || band_used[l].item<bool>()) bands.push_back(l);
+    if (band_used[l].item<bool>()) bands.push_back(l);
   torch::Tensor out = torch::zeros({B, C, H, W}, radiance.options());
   if (bands.empty()) return out;
   const torch::Tensor li = torch::tensor(bands, torch::kInt64).to(radiance.device());
@@ -172,7 +172,7 @@ torch::Tensor render_sensor_image(const torch::Tensor& radiance, const torch::Te
   // The custom node differentiates the PSFs only; otherwise compose generic ops.
   const bool generic = spec.requires_grad() || om.requires_grad();
   for (int64_t z = 0; z < Z; ++z) {
-    if (leave_out && !layer_used[z].item<bool>()) continue;
+    if (!layer_used[z].item<bool>()) continue;
     // Σ_λ Ω_c,λ FFT(I_λ) OTF_λ,z -> [B, C, nh, nw/2+1], then 3 inverse FFTs per image.
     const torch::Tensor pz = ps.select(1, z);
     const torch::Tensor summed = generic ? layer_spectrum_generic(pz, spec, om, eh, ew)

@@ -33,9 +33,10 @@ std::vector<int64_t> occupied_layers(const torch::Tensor& depth_m, const std::ve
 
 // J [B, 3, H, W] from radiance [B, L, H, W], masks [B, Z', H, W], psf [L, Z', P, P]
 // (the PSFs of the same Z' layers as the masks, in the same order) and camera
-// response omega [3, L]. leave_out = false computes every band (for tests).
+// response omega [3, L]. Bands the camera does not see (a zero column of
+// omega) and layers no pixel occupies (a zero mask) are left out.
 torch::Tensor render_sensor_image(const torch::Tensor& radiance, const torch::Tensor& masks, const torch::Tensor& psf,
-                                  const torch::Tensor& omega, bool leave_out = true);
+                                  const torch::Tensor& omega);
 
 // Occlusion-aware layered compositing (Ikoma et al., ICCP 2021, "Depth from
 // defocus with learned optics"), layers ordered far to near by

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <stdexcept>
 #include <string>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -14,6 +15,7 @@
 
 #include "common/config.h"
 #include "optics/psf.h"
+#include "train/metrics_csv.h"
 
 namespace hsd::test {
 
@@ -50,31 +52,22 @@ inline std::pair<double, double> centroid(const torch::Tensor& img) {
 
 // --set flags for a tiny training run on configs/tiny.json with its data in
 // data_root (a few seconds): a 4-wide, 2-level network, 16-px patches, 2
-// training, 1 validation and 1 test scene of 48 x 40 px, 2 steps of 2 patches.
-inline std::string tiny_run_sets(const std::filesystem::path& data_root) {
+// training, 1 validation and 1 test scene of 48 x 40 px, `steps` steps of 2 patches.
+inline std::string tiny_run_sets(const std::filesystem::path& data_root, int steps = 2) {
   return " --set data.root=" + data_root.string() +
-         " --set model.base_width=4 --set model.levels=2 --set train.batch_size=2 --set train.steps=2"
+         " --set model.base_width=4 --set model.levels=2 --set train.batch_size=2 --set train.steps=" + std::to_string(steps) +
          " --set train.val_patches=2 --set data.patch_size_px=16 --set data.generator.train_scenes=2"
          " --set data.generator.val_scenes=1 --set data.generator.test_scenes=1 --set data.generator.width_px=48"
          " --set data.generator.height_px=40";
 }
 
-// Column `col` of a metrics.csv (header skipped), one value per row; NaN
-// where the row leaves the column empty.
-inline std::vector<double> csv_column(const std::filesystem::path& csv, size_t col) {
-  std::ifstream f(csv);
-  std::string line;
-  std::getline(f, line);
+// Column `name` of a metrics.csv, one value per row; NaN where the row leaves
+// it empty. Throws if the header has no such column.
+inline std::vector<double> csv_column(const std::filesystem::path& csv, const std::string& name) {
+  const train::CsvTable t = train::read_csv_table(csv.string());
+  if (!t.has(name)) throw std::runtime_error(csv.string() + " has no column " + name);
   std::vector<double> v;
-  while (std::getline(f, line)) {
-    std::vector<std::string> c;
-    std::string cell;
-    for (char ch : line + ",") {
-      if (ch == ',') c.push_back(cell), cell.clear();
-      else cell += ch;
-    }
-    v.push_back(c.size() > col && !c[col].empty() ? std::stod(c[col]) : std::nan(""));
-  }
+  for (size_t r = 0; r < t.rows.size(); ++r) v.push_back(t.number(r, name));
   return v;
 }
 

@@ -405,17 +405,8 @@ namespace {
 // Columns of metrics.csv: step -> (train_loss, val_loss).
 std::map<std::string, std::pair<std::string, std::string>> loss_curve(const fs::path& csv) {
   std::map<std::string, std::pair<std::string, std::string>> out;
-  std::ifstream f(csv);
-  std::string line;
-  std::getline(f, line);
-  while (std::getline(f, line)) {
-    std::vector<std::string> c;
-    std::stringstream ss(line);
-    std::string cell;
-    while (std::getline(ss, cell, ',')) c.push_back(cell);
-    c.resize(4);
-    out[c[0]] = {c[2], c[3]};
-  }
+  const train::CsvTable t = train::read_csv_table(csv.string());
+  for (size_t r = 0; r < t.rows.size(); ++r) out[t.cell(r, "step")] = {t.cell(r, "train_loss"), t.cell(r, "val_loss")};
   return out;
 }
 }  // namespace
@@ -517,13 +508,7 @@ TEST_CASE("hsd_fisher writes the CRLB table and a design that training and hsd_p
 
 namespace {
 // A tiny training run for the evaluation and export tests: 4 steps, one test scene and the ColorChecker.
-std::string eval_test_sets(const fs::path& base) {
-  return " --set data.root=" + (base / "data").string() +
-         " --set model.base_width=4 --set model.levels=2 --set train.batch_size=2 --set train.steps=4"
-         " --set train.val_patches=2 --set data.patch_size_px=16 --set data.generator.train_scenes=2"
-         " --set data.generator.val_scenes=1 --set data.generator.test_scenes=1 --set data.generator.width_px=48"
-         " --set data.generator.height_px=40";
-}
+std::string eval_test_sets(const fs::path& base) { return test::tiny_run_sets(base / "data", 4); }
 }  // namespace
 
 TEST_CASE("hsd_train, hsd_eval and hsd_export with the Wiener pre-inversion: the exported model scores the checkpoint's metrics", "[app][eval][preinverse]") {
@@ -655,11 +640,7 @@ TEST_CASE("hsd_ablate runs the four DOE arms and the control, without a shell, a
   const fs::path base = fs::temp_directory_path() / "hsd_test_ablate";
   fs::remove_all(base);
   const std::string sets =
-      " --set data.root=" + (base / "data").string() +
-      " --set model.base_width=4 --set model.levels=2 --set train.batch_size=2 --set train.steps=3"
-      " --set train.val_patches=2 --set data.patch_size_px=16 --set data.generator.train_scenes=2"
-      " --set data.generator.val_scenes=1 --set data.generator.test_scenes=1 --set data.generator.width_px=48"
-      " --set data.generator.height_px=40 --set fisher.design_samples=32 --set fisher.window_px=9 --set fisher.steps=3"
+      test::tiny_run_sets(base / "data", 3) + " --set fisher.design_samples=32 --set fisher.window_px=9 --set fisher.steps=3"
       " --set fisher.zernike_modes=6";
   // A --set value with a quote and a command substitution reaches the sub-runs
   // as text: no shell sees it (it used to break the runs or run the command).
@@ -713,12 +694,7 @@ TEST_CASE("hsd_scenes --real builds the held-out real-derived set and hsd_eval -
   CHECK((front.depth_m.max() - front.depth_m.min()).item<float>() < 1e-3f);
   CHECK(fs::exists(base / "real" / "realism.json"));
   // A tiny trained system, evaluated on the real-derived set with --data.
-  const std::string sets =
-      " --set data.root=" + (base / "synthetic").string() +
-      " --set model.base_width=4 --set model.levels=2 --set train.batch_size=2 --set train.steps=2"
-      " --set train.val_patches=2 --set data.patch_size_px=16 --set data.generator.train_scenes=2"
-      " --set data.generator.val_scenes=1 --set data.generator.test_scenes=1 --set data.generator.width_px=48"
-      " --set data.generator.height_px=40";
+  const std::string sets = test::tiny_run_sets(base / "synthetic");
   REQUIRE(run("hsd_train --config configs/tiny.json" + sets + " --out " + (base / "run").string()).code == 0);
   const Run e = run("hsd_eval --config configs/tiny.json" + sets + " --checkpoint " + (base / "run/checkpoints/last.pt").string() +
                     " --data " + (base / "real").string() + " --out " + (base / "eval").string());

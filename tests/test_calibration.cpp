@@ -277,7 +277,7 @@ TEST_CASE("train.init_checkpoint and a PSF file: fine-tuning starts exactly wher
   REQUIRE(b.code == 0);
   auto val_losses = [](const fs::path& csv) {  // the rows with a validation loss
     std::vector<double> v;
-    for (double x : test::csv_column(csv, 3))
+    for (double x : test::csv_column(csv, "val_loss"))
       if (!std::isnan(x)) v.push_back(x);
     return v;
   };

@@ -459,11 +459,8 @@ const std::string kTinyRun =
 // step -> (train_loss, val_loss) of a metrics.csv (NaN where empty).
 std::map<int, std::pair<double, double>> losses(const fs::path& csv) {
   std::map<int, std::pair<double, double>> out;
-  auto num = [](const std::string& s) { return s.empty() ? std::nan("") : std::stod(s); };
-  for (auto c : train::read_csv_rows(csv.string())) {
-    c.resize(4);
-    out[std::stoi(c[0])] = {num(c[2]), num(c[3])};
-  }
+  const train::CsvTable t = train::read_csv_table(csv.string());
+  for (size_t r = 0; r < t.rows.size(); ++r) out[int(t.number(r, "step"))] = {t.number(r, "train_loss"), t.number(r, "val_loss")};
   return out;
 }
 

@@ -417,10 +417,10 @@ TEST_CASE("train.fabrication_noise: the same run sees other PSFs in training, va
   const test::Run b = test::run("hsd_train " + cfg + noise + " --out " + (base / "b").string());
   INFO(b.err);
   REQUIRE(b.code == 0);
-  // Column 2 is train_loss, 3 val_loss; row 1 is step 0's validation, then steps.
+  // Row 1 is step 0's validation, then the steps.
   const auto column = test::csv_column;
-  const auto ta = column(base / "a/metrics.csv", 2), tb = column(base / "b/metrics.csv", 2);
-  const auto va = column(base / "a/metrics.csv", 3), vb = column(base / "b/metrics.csv", 3);
+  const auto ta = column(base / "a/metrics.csv", "train_loss"), tb = column(base / "b/metrics.csv", "train_loss");
+  const auto va = column(base / "a/metrics.csv", "val_loss"), vb = column(base / "b/metrics.csv", "val_loss");
   REQUIRE(ta.size() >= 2);
   REQUIRE(tb.size() == ta.size());
   // Step 0's validation is the same design in both runs; its training loss is not.

@@ -41,10 +41,7 @@ TEST_CASE("paper defaults meet the PSF accuracy target", "[psf][accuracy]") {
     auto spec = optics::make_psf_spec(cfg.optics, material, torch::kCPU);
     const auto fast = optics::PsfSimulator(spec).compute(h).psf;
 
-    auto ref_spec = spec;
-    ref_spec.real_dtype = torch::kFloat64;
-    ref_spec.pixel_nodes.assign(spec.pixel_nodes.size(), 8);
-    ref_spec.mft_rank_tol = 0.0;  // exact matrix Fourier transform
+    const auto ref_spec = optics::converged_reference(spec);
     const auto ref = optics::PsfSimulator(ref_spec).compute(h).psf;
 
     const torch::Tensor err = rel_l1(fast, ref);

@@ -38,7 +38,7 @@ TEST_CASE("sensor: an impulse at one layer's depth reproduces the PSFs weighted 
   }
 }
 
-TEST_CASE("sensor: fast path equals the straightforward one with and without leave-out", "[sensor]") {
+TEST_CASE("sensor: the fast path, leaving out unseen bands and empty layers, equals the straightforward one over all of them", "[sensor]") {
   const int64_t L = 5, Z = 4, P = 9, H = 32, W = 28, B = 2;
   const std::vector<double> depths{0.4, 0.6, 1.0, 2.0};
   torch::manual_seed(0);
@@ -52,11 +52,9 @@ TEST_CASE("sensor: fast path equals the straightforward one with and without lea
   REQUIRE(optics::occupied_layers(depth, depths) == std::vector<int64_t>{0, 2});
   const torch::Tensor masks = optics::layer_masks(depth, depths, 1.5);
   const torch::Tensor direct = optics::render_sensor_image_direct(I, masks, psf, omega);
-  const torch::Tensor fast = optics::render_sensor_image(I, masks, psf, omega, true);
-  const torch::Tensor full = optics::render_sensor_image(I, masks, psf, omega, false);
+  const torch::Tensor fast = optics::render_sensor_image(I, masks, psf, omega);
   const double scale = direct.abs().max().item<double>();
   CHECK((fast - direct).abs().max().item<double>() < 1e-5 * scale);
-  CHECK((full - direct).abs().max().item<double>() < 1e-5 * scale);
   // random depths over all layers
   const torch::Tensor depth2 = 0.35 + 2.0 * torch::rand({B, 1, H, W});
   const torch::Tensor masks2 = optics::layer_masks(depth2, depths, 0.8);

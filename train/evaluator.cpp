@@ -16,14 +16,14 @@
 #include "data/image_io.h"
 #include "data/manifest.h"
 #include "data/preview.h"
-#include "optics/psf_source.h"
-#include "optics/psf_atlas.h"
-#include "optics/spectrum.h"
 #include "model/spectral_upsampling.h"
 #include "model/wiener_preinverse.h"
+#include "optics/psf_source.h"
+#include "optics/spectrum.h"
 #include "train/baselines.h"
 #include "train/metrics.h"
-#include "train/plot.h"
+#include "viz/plot.h"
+#include "viz/psf_atlas.h"
 
 namespace hsd::train {
 
@@ -142,7 +142,7 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     data::write_srgb_png(stem + "_c.png", (hs - radiance).abs().mean(0, true).expand({3, -1, -1}), 0.25 * m.data_range);
     data::write_depth_png(stem + "_d.png", sc.depth_m, sc.mask, near, far);
     data::write_depth_png(stem + "_e.png", dp, {}, near, far);
-    write_montage({stem + "_a.png", stem + "_b.png", stem + "_c.png", stem + "_d.png", stem + "_e.png"}, 5, 1.0,
+    viz::write_montage({stem + "_a.png", stem + "_b.png", stem + "_c.png", stem + "_d.png", stem + "_e.png"}, 5, 1.0,
             stem + "_compare.png");
     // Spectra at three valid points (the centre and two drawn with the seed).
     std::vector<std::pair<int64_t, int64_t>> pts{{sc.spectral.size(1) / 2, sc.spectral.size(2) / 2}};
@@ -151,7 +151,7 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
       const int64_t y = int64_t(rng() % uint64_t(sc.spectral.size(1))), x = int64_t(rng() % uint64_t(sc.spectral.size(2)));
       if (sc.mask[0][y][x].item<float>() > 0.5f) pts.push_back({y, x});
     }
-    std::vector<Series> series;
+    std::vector<viz::Series> series;
     const std::array<std::array<int, 3>, 3> colours{{{200, 60, 30}, {30, 150, 30}, {30, 30, 200}}};
     std::vector<double> wl(cfg.optics.wavelengths_nm.begin(), cfg.optics.wavelengths_nm.end());
     for (size_t k = 0; k < pts.size(); ++k) {
@@ -165,7 +165,7 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
       for (int& c : light) c = 255 - (255 - c) / 3;  // the reconstruction in a lighter shade
       series.push_back({"  reconstruction", wl, p, light});
     }
-    write_line_plot(stem + "_spectra.png", "radiance spectra at three points (x, y)", "wavelength [nm]", series, false);
+    viz::write_line_plot(stem + "_spectra.png", "radiance spectra at three points (x, y)", "wavelength [nm]", series, false);
     // ColorChecker: recovered reflectance in each patch.
     const std::string layout = root + "/colorchecker_layout.json";
     if (std::filesystem::path(ls.file).stem() == "colorchecker" && std::filesystem::exists(layout)) {
@@ -179,10 +179,10 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
         const std::string f = out_dir + "/cc_" + std::to_string(k) + ".png";
         std::vector<double> t(tru[int64_t(k)].data_ptr<double>(), tru[int64_t(k)].data_ptr<double>() + tru.size(1));
         std::vector<double> r(rec[int64_t(k)].data_ptr<double>(), rec[int64_t(k)].data_ptr<double>() + rec.size(1));
-        write_line_plot(f, names[k], "nm", {{"truth", wl, t, {30, 30, 30}}, {"recovered", wl, r, {30, 30, 220}}}, false);
+        viz::write_line_plot(f, names[k], "nm", {{"truth", wl, t, {30, 30, 30}}, {"recovered", wl, r, {30, 30, 220}}}, false);
         files.push_back(f);
       }
-      write_montage(files, 6, 0.5, out_dir + "/colorchecker_spectra.png");
+      viz::write_montage(files, 6, 0.5, out_dir + "/colorchecker_spectra.png");
       cc_sum += m.colorchecker_rmse;
       ++cc_count;
     }
@@ -212,9 +212,9 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
           a.baseline_constant_depth_mae_m += m.baseline_constant_depth_mae_m / n;
   }
   a.colorchecker_rmse = cc_count > 0 ? cc_sum / double(cc_count) : -1.0;
-  optics::write_psf_atlas(out_dir + "/psf_atlas.png", imaging_psf,
+  viz::write_psf_atlas(out_dir + "/psf_atlas.png", imaging_psf,
                           psf.spec().wavelengths_m, psf.spec().depths_m);
-  // metrics.json (CONTRACT.md keys) and report.md.
+  // metrics.json (docs/interfaces.md keys) and report.md.
   auto row = [](const SceneMetrics& m) {
     Json j{{"file", m.file}, {"hs_psnr_db", m.hs_psnr_db}, {"hs_ssim", m.hs_ssim}, {"lum_psnr_db", m.lum_psnr_db},
            {"lum_ssim", m.lum_ssim}, {"depth_rmse_m", m.depth_rmse_m}, {"depth_mae_m", m.depth_mae_m}};

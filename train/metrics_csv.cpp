@@ -1,5 +1,8 @@
 #include "train/metrics_csv.h"
 
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <sstream>
 
@@ -14,14 +17,33 @@ std::vector<std::string> split_csv_line(const std::string& line) {
   return cells;
 }
 
-std::vector<std::vector<std::string>> read_csv_rows(const std::string& path) {
-  std::vector<std::vector<std::string>> rows;
+std::vector<std::vector<std::string>> read_csv_rows(const std::string& path) { return read_csv_table(path).rows; }
+
+CsvTable read_csv_table(const std::string& path) {
+  CsvTable t;
   std::ifstream f(path);
   std::string line;
-  std::getline(f, line);  // header
+  if (!std::getline(f, line)) return t;
+  t.header = split_csv_line(line);
   while (std::getline(f, line))
-    if (!line.empty()) rows.push_back(split_csv_line(line));
-  return rows;
+    if (!line.empty()) t.rows.push_back(split_csv_line(line));
+  return t;
+}
+
+size_t CsvTable::column(const std::string& name) const {
+  return size_t(std::find(header.begin(), header.end(), name) - header.begin());
+}
+
+std::string CsvTable::cell(size_t r, const std::string& name) const {
+  const size_t c = column(name);
+  return r < rows.size() && c < rows[r].size() ? rows[r][c] : std::string();
+}
+
+double CsvTable::number(size_t r, const std::string& name) const {
+  const std::string s = cell(r, name);
+  char* end = nullptr;
+  const double v = std::strtod(s.c_str(), &end);
+  return s.empty() || end == s.c_str() ? std::nan("") : v;
 }
 
 }  // namespace hsd::train

@@ -16,6 +16,7 @@
 #include "common/error.h"
 #include "common/log.h"
 #include "common/tensor_io.h"
+#include "common/text_format.h"
 #include "data/image_io.h"
 #include "data/preview.h"
 #include "data/synthetic_dataset.h"
@@ -23,12 +24,12 @@
 #include "model/wiener_preinverse.h"
 #include "optics/fabrication_error.h"
 #include "optics/psf_source.h"
-#include "optics/psf_atlas.h"
 #include "train/baselines.h"
 #include "train/metrics_csv.h"
-#include "train/plot.h"
 #include "train/schedule.h"
 #include "train/shared_psf.h"
+#include "viz/plot.h"
+#include "viz/psf_atlas.h"
 
 namespace hsd::train {
 
@@ -58,12 +59,6 @@ torch::Tensor with_fabrication_noise(const torch::Tensor& h, const Config& cfg, 
   return optics::fabricated_surface(h, e, {doe.pitch_m(), 1, doe.max_height_m(), 0, angle}, rng());
 }
 constexpr uint64_t kValSeed = 0x5EEDULL;
-
-std::string fmt(const char* f, double v) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, f, v);
-  return buf;
-}
 
 model::NetOptions net_options(const Config& cfg) {
   model::NetOptions o;
@@ -272,7 +267,7 @@ void Trainer::attach_data() {
             " valid windows), " + std::to_string(patches.size()) + " validation patches of " +
             std::to_string(cfg_.data.patch_size_px) + " px (rendered with " + std::to_string(margin_) +
             " px of scene around them); constant-depth baseline " +
-            fmt("%.3f m", 1.0 / baseline_inv_depth_) + " (the train split's median inverse depth)");
+            format("%.3f m", 1.0 / baseline_inv_depth_) + " (the train split's median inverse depth)");
 }
 
 torch::Tensor Trainer::centre(const torch::Tensor& t) const {
@@ -413,8 +408,9 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   for (const auto& p : net_->named_parameters()) named.emplace_back("network parameter " + p.key(), p.value());
   if (doe_trained_) named.emplace_back("the DOE height map", doe_.parameter());
   check_grads(named, step);
-  // Clipping per group: the network's gradient norm, and the DOE's relative to
-  // its own scale (its gradient is in loss per metre, ~1e6 times larger).
+  // Only the network's gradient norm is clipped: the DOE's gradient is in loss
+  // per metre (~1e6 times larger), and Adam's step into it is already bounded
+  // by lr_doe_m.
   if (T.clip_grad_norm > 0) torch::nn::utils::clip_grad_norm_(net_->parameters(), T.clip_grad_norm);
   opt_->step();
   if (pre) net_->set_preinverse_psf(rgb_psf.detach());  // its graph is spent; refresh_preinverse() for the new DOE
@@ -618,8 +614,8 @@ void Trainer::write_val_pictures(const std::string& dir, int64_t step) {
   }
   // One picture per validation: a row per patch, [truth | sensor | reconstruction |
   // |error| | true depth | predicted depth], enlarged 3x; the pieces are removed.
-  write_montage(parts, 6, 3.0, std::string(stem) + "reconstructions.png");
-  optics::write_psf_atlas(std::string(stem) + "psf_atlas.png", psf_stack().cpu(),
+  viz::write_montage(parts, 6, 3.0, std::string(stem) + "reconstructions.png");
+  viz::write_psf_atlas(std::string(stem) + "psf_atlas.png", psf_stack().cpu(),
                           psf_->spec().wavelengths_m, psf_->spec().depths_m);
 }
 
@@ -723,28 +719,28 @@ void Trainer::run(const std::string& out_dir, bool resume) {
         wx.push_back(vx.back()), wiener_psnr.push_back(num(c[col("val_baseline_wiener_hs_psnr_db")]));
     }
     write_text_file(csv, text);
-    write_line_plot(out_dir + "/curves.png", "loss (L1 cube + weighted depth terms)", "step",
+    viz::write_line_plot(out_dir + "/curves.png", "loss (L1 cube + weighted depth terms)", "step",
                     {{"train", xs, tr, {200, 120, 30}}, {"validation", vx, vl, {30, 30, 200}}}, true);
     if (vx.empty()) return;
     // The baselines as lines beside the model's curves: a curve that does not
     // leave its baseline has learned nothing.
-    std::vector<Series> hs_lines{{"model", vx, psnr, {30, 140, 30}}, {"upsampling alone", vx, base_psnr, {150, 150, 150}}};
+    std::vector<viz::Series> hs_lines{{"model", vx, psnr, {30, 140, 30}}, {"upsampling alone", vx, base_psnr, {150, 150, 150}}};
     if (!wx.empty()) hs_lines.push_back({"Wiener + upsampling", wx, wiener_psnr, {90, 90, 200}});
-    write_line_plot(out_dir + "/val_psnr.png", "validation hyperspectral PSNR [dB]", "step", hs_lines, false);
-    write_line_plot(out_dir + "/val_depth.png", "validation depth RMSE [m]", "step",
+    viz::write_line_plot(out_dir + "/val_psnr.png", "validation hyperspectral PSNR [dB]", "step", hs_lines, false);
+    viz::write_line_plot(out_dir + "/val_depth.png", "validation depth RMSE [m]", "step",
                     {{"model", vx, rmse, {200, 60, 30}}, {"constant depth", vx, base_rmse, {150, 150, 150}}},
                     false);
   };
   auto val_cells = [&](std::vector<std::string>& row, const ValStats& v) {
-    row[col("val_loss")] = fmt("%.6g", v.loss);
-    row[col("val_hs_psnr_db")] = fmt("%.4f", v.hs_psnr_db);
-    row[col("val_depth_rmse_m")] = fmt("%.5f", v.depth_rmse_m);
-    row[col("val_depth_mae_m")] = fmt("%.5f", v.depth_mae_m);
-    row[col("val_baseline_hs_psnr_db")] = fmt("%.4f", v.baseline_hs_psnr_db);
-    row[col("val_baseline_depth_rmse_m")] = fmt("%.5f", v.baseline_depth_rmse_m);
-    row[col("val_depth_saturated")] = fmt("%.4f", v.depth_saturated);
+    row[col("val_loss")] = format("%.6g", v.loss);
+    row[col("val_hs_psnr_db")] = format("%.4f", v.hs_psnr_db);
+    row[col("val_depth_rmse_m")] = format("%.5f", v.depth_rmse_m);
+    row[col("val_depth_mae_m")] = format("%.5f", v.depth_mae_m);
+    row[col("val_baseline_hs_psnr_db")] = format("%.4f", v.baseline_hs_psnr_db);
+    row[col("val_baseline_depth_rmse_m")] = format("%.5f", v.baseline_depth_rmse_m);
+    row[col("val_depth_saturated")] = format("%.4f", v.depth_saturated);
     if (std::isfinite(v.baseline_wiener_hs_psnr_db))
-      row[col("val_baseline_wiener_hs_psnr_db")] = fmt("%.4f", v.baseline_wiener_hs_psnr_db);
+      row[col("val_baseline_wiener_hs_psnr_db")] = format("%.4f", v.baseline_wiener_hs_psnr_db);
   };
   auto log_val = [&](int64_t step, const ValStats& v) {
     char buf[400], wb[64] = "";
@@ -793,10 +789,10 @@ void Trainer::run(const std::string& out_dir, bool resume) {
     const bool do_val = (k + 1) % T.val_every == 0 || last;
     if ((k + 1) % T.log_every == 0 || do_val || k == start) {
       std::vector<std::string> row(columns.size());
-      row[col("step")] = std::to_string(k + 1), row[col("wall_s")] = fmt("%.3f", wall());
-      row[col("train_loss")] = fmt("%.6g", st.loss), row[col("train_hs_l1")] = fmt("%.6g", st.hs);
-      row[col("train_depth_l1")] = fmt("%.6g", st.depth), row[col("lr_net")] = fmt("%.4g", st.lr_net);
-      row[col("lr_doe_m")] = fmt("%.4g", st.lr_doe);
+      row[col("step")] = std::to_string(k + 1), row[col("wall_s")] = format("%.3f", wall());
+      row[col("train_loss")] = format("%.6g", st.loss), row[col("train_hs_l1")] = format("%.6g", st.hs);
+      row[col("train_depth_l1")] = format("%.6g", st.depth), row[col("lr_net")] = format("%.4g", st.lr_net);
+      row[col("lr_doe_m")] = format("%.4g", st.lr_doe);
       if (do_val) {
         const ValStats v = validate();
         val_cells(row, v);

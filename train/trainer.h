@@ -4,8 +4,8 @@
 //   -> PSFs of the DOE height h for the occupied layers -> sensor image J + noise
 //   -> network -> (Î, D̂) -> loss(Î, I, D̂, 1/Z) -> Adam step into h and θ.
 // Adam with one parameter group per part (network, DOE; the DOE is left out
-// when frozen), warm-up and cosine decay (schedule.h), gradient clipping per
-// group, and a NaN/Inf guard that stops with the step and tensor named.
+// when frozen), warm-up and cosine decay (schedule.h), the network's gradient
+// norm clipped, and a NaN/Inf guard that stops with the step and tensor named.
 // Every random choice of step k (patches, lighting, noise) is a function of
 // (seed, k), so a run resumed from a checkpoint repeats the uninterrupted run
 // exactly (same thread count).
@@ -114,14 +114,14 @@ class Trainer {
   // heads as loaded. InputError naming the file for a missing or mismatched entry.
   void start_from(const std::string& path);
 
-  // The whole run with its outputs in out_dir (CONTRACT.md: metrics.csv,
+  // The whole run with its outputs in out_dir (docs/interfaces.md: metrics.csv,
   // checkpoints/last.pt, config.json; plus curves.png, val/ pictures). With a
   // group only rank 0 writes; all ranks end together.
   void run(const std::string& out_dir, bool resume);
   // Before any data is loaded: InputError (exit 2) naming the file if
   // out_dir's checkpoint or metrics.csv cannot be resumed from.
   void check_resume(const std::string& out_dir);
-  // metrics.csv's columns, in order (CONTRACT.md, then additions).
+  // metrics.csv's columns, in order (docs/interfaces.md, then additions).
   static const std::vector<std::string>& metrics_columns();
   bool writes_outputs() const { return !group_ || group_->rank() == 0; }
 
@@ -139,14 +139,12 @@ class Trainer {
   // The constant-depth baseline's inverse depth [1/m]: the training split's
   // median (attach_data, or a checkpoint that stores it); NaN when unknown.
   double baseline_inv_depth() const { return baseline_inv_depth_; }
-  bool doe_trained() const { return doe_trained_; }
   // The network's training arithmetic (train.precision resolved).
   const TrainingPrecision& precision() const { return precision_; }
   model::HsdNet& net() { return net_; }
   optics::Doe& doe() { return doe_; }
   const optics::PsfSimulator& psf() const { return *psf_; }
   const optics::SensorModel& sensor() const { return sensor_; }
-  const Batch& val_batch() const { return val_; }
 
  private:
   // metrics.csv's rows up to step `start` (checked; short rows of an earlier

@@ -1,4 +1,4 @@
-#include "train/plot.h"
+#include "viz/plot.h"
 
 #include <algorithm>
 #include <cmath>
@@ -12,7 +12,7 @@
 #include "common/atomic_file.h"
 #include "common/error.h"
 
-namespace hsd::train {
+namespace hsd::viz {
 
 void write_line_plot(const std::string& path, const std::string& title, const std::string& x_label,
                      const std::vector<Series>& series, bool log_y) {
@@ -202,4 +202,4 @@ void write_montage(const std::vector<std::string>& files, int cols, double scale
   for (const auto& f : files) std::filesystem::remove(f);
 }
 
-}  // namespace hsd::train
+}  // namespace hsd::viz

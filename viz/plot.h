@@ -4,7 +4,7 @@
 #include <string>
 #include <vector>
 
-namespace hsd::train {
+namespace hsd::viz {
 
 struct Series {
   std::string name;
@@ -35,4 +35,4 @@ std::vector<size_t> pareto_front(const std::vector<LabelledPoint>& points);
 // enlarged by `scale`; writes `out` atomically and removes the pieces.
 void write_montage(const std::vector<std::string>& files, int cols, double scale, const std::string& out);
 
-}  // namespace hsd::train
+}  // namespace hsd::viz

@@ -1,4 +1,4 @@
-#include "optics/psf_atlas.h"
+#include "viz/psf_atlas.h"
 
 #include <cmath>
 #include <cstdio>
@@ -11,7 +11,7 @@
 #include "common/error.h"
 #include "optics/spectrum.h"
 
-namespace hsd::optics {
+namespace hsd::viz {
 
 torch::Tensor render_psf_atlas(const torch::Tensor& psf_in, const std::vector<double>& wavelengths_m,
                                const std::vector<double>& depths_m) {
@@ -29,7 +29,7 @@ torch::Tensor render_psf_atlas(const torch::Tensor& psf_in, const std::vector<do
                 cv::LINE_AA);
   }
   for (int l = 0; l < L; ++l) {
-    const auto rgb = wavelength_display_rgb(wavelengths_m[size_t(l)]);
+    const auto rgb = optics::wavelength_display_rgb(wavelengths_m[size_t(l)]);
     char buf[32];
     std::snprintf(buf, sizeof buf, "%.0f nm", wavelengths_m[size_t(l)] * 1e9);
     const int y0 = top + l * (tile + gap);
@@ -63,4 +63,4 @@ void write_psf_atlas(const std::string& path, const torch::Tensor& psf, const st
   write_binary_file(path, std::vector<char>(buf.begin(), buf.end()));  // temp file + rename
 }
 
-}  // namespace hsd::optics
+}  // namespace hsd::viz

@@ -8,7 +8,7 @@
 
 #include <torch/types.h>
 
-namespace hsd::optics {
+namespace hsd::viz {
 
 // psf [L, Z, P, P]; returns an 8-bit BGR image (cv::Mat stored in a torch uint8 tensor [H, W, 3]).
 torch::Tensor render_psf_atlas(const torch::Tensor& psf, const std::vector<double>& wavelengths_m,
@@ -16,4 +16,4 @@ torch::Tensor render_psf_atlas(const torch::Tensor& psf, const std::vector<doubl
 void write_psf_atlas(const std::string& path, const torch::Tensor& psf, const std::vector<double>& wavelengths_m,
                      const std::vector<double>& depths_m);
 
-}  // namespace hsd::optics
+}  // namespace hsd::viz

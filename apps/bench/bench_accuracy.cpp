@@ -34,16 +34,17 @@
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/log.h"
+#include "common/text_format.h"
 #include "data/band_resample.h"
 #include "data/reflectance_library.h"
 #include "data/scene_generator.h"
 #include "optics/doe.h"
-#include "optics/psf.h"
 #include "optics/pixel_quadrature.h"
+#include "optics/psf.h"
 #include "optics/sensor.h"
 #include "optics/sensor_image.h"
 #include "optics/spectrum.h"
-#include "train/plot.h"
+#include "viz/plot.h"
 
 namespace hsd::bench {
 
@@ -60,12 +61,6 @@ struct Row {
   double seconds = 0, seconds_fwd = 0, rel_l1_max = 0, rel_l1_mean = 0, psnr_db = 0, energy_min = 0;
   double worst_nm = 0, worst_depth_m = 0;  // where the worst PSF error is
 };
-
-std::string fmt(const char* f, double a) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, f, a);
-  return buf;
-}
 
 // Zero-pads a [L, Z, w, w] stack to [L, Z, P, P] (w ≤ P, both odd).
 torch::Tensor pad_to(const torch::Tensor& p, int64_t P) {
@@ -132,10 +127,7 @@ int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out) {
   auto render = [&](const torch::Tensor& psf_all) { return render_layers(psf_all.index_select(1, zi)); };  // [L, Z, P', P']
 
   // Converged reference.
-  optics::PsfSpec ref_spec = base;
-  ref_spec.real_dtype = torch::kFloat64;
-  ref_spec.pixel_nodes.assign(size_t(L), 8);
-  ref_spec.mft_rank_tol = 0.0;
+  optics::PsfSpec ref_spec = optics::converged_reference(base);
   ref_spec.pupil_oversampling = ref_os;
   ref_spec.spectral_samples = ref_sp;
   if (ref_sp > 1) ref_spec.spectral_refractive_index = material.indices(ref_spec.spectral_wavelengths_m());
@@ -164,7 +156,7 @@ int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out) {
     const torch::Tensor a = optics::PsfSimulator(mid).compute(h0, {}, {}, ends).psf;
     const torch::Tensor b = ref_psf.index_select(0, torch::tensor(ends, torch::kInt64));
     ref_check = ((a - b).abs().sum({2, 3}) / b.sum({2, 3})).max().item<double>();
-    log::info("reference check: the midpoint rule at the same oversampling differs by " + fmt("%.2e", ref_check));
+    log::info("reference check: the midpoint rule at the same oversampling differs by " + format("%.2e", ref_check));
   }
 
   // The settings.
@@ -185,14 +177,14 @@ int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out) {
         [n](optics::PsfSpec& s) { s.pixel_nodes.assign(s.pixel_nodes.size(), n); });
   for (double tol : {1e-1, 1e-2, 1e-3}) {
     if (tol == cfg.optics.pixel_quadrature_tol && cfg.optics.pixel_quadrature_nodes == 0) continue;
-    add("quadrature_tol_" + fmt("%.0e", tol), "pixel_quadrature_tol", fmt("%.0e", tol), [tol](optics::PsfSpec& s) {
+    add("quadrature_tol_" + format("%.0e", tol), "pixel_quadrature_tol", format("%.0e", tol), [tol](optics::PsfSpec& s) {
       for (size_t l = 0; l < s.wavelengths_m.size(); ++l)
         s.pixel_nodes[l] = optics::choose_pixel_nodes(
             optics::intensity_cycles_per_pixel(s.aperture_diameter_m, s.pixel_pitch_m, s.wavelengths_m[l], s.sensor_distance_m), tol);
     });
   }
   for (double tol : {1e-3, 1e-4, 1e-6, 1e-8})
-    if (tol != base.mft_rank_tol) add("rank_tol_" + fmt("%.0e", tol), "mft_rank_tol", fmt("%.0e", tol), [tol](optics::PsfSpec& s) { s.mft_rank_tol = tol; });
+    if (tol != base.mft_rank_tol) add("rank_tol_" + format("%.0e", tol), "mft_rank_tol", format("%.0e", tol), [tol](optics::PsfSpec& s) { s.mft_rank_tol = tol; });
   add("exact_mft", "mft_rank_tol", "0 (exact MFT)", [](optics::PsfSpec& s) { s.mft_rank_tol = 0.0; });
   if (!base.depth_basis)
     add("depth_basis", "depth_basis (training's kernels)", "joint over depths",
@@ -312,7 +304,7 @@ int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out) {
     for (double tol : {1e-7, 1e-2}) {
       optics::LeaveOut t = dflt;
       t.band_tol = tol;
-      compare("dark_bands_tol_" + fmt("%.0e", tol), "LED-RGB1 light: dark bands skipped, contribution bound " + fmt("%.0e", tol),
+      compare("dark_bands_tol_" + format("%.0e", tol), "LED-RGB1 light: dark bands skipped, contribution bound " + format("%.0e", tol),
               sensor, rad_led, depth, t);
     }
     // (3) a single-band (laser-like) scene: every other band is exactly zero
@@ -350,10 +342,10 @@ int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out) {
   }
   write_text_file(args.out_dir + "/leave_out.csv", lcsv);
 
-  std::vector<train::LabelledPoint> pts;
+  std::vector<viz::LabelledPoint> pts;
   for (const auto& r : rows) pts.push_back({r.s.name, r.seconds, r.rel_l1_max});
   const int threads = torch::get_num_threads();
-  train::write_pareto_plot(args.out_dir + "/error_vs_runtime.png",
+  viz::write_pareto_plot(args.out_dir + "/error_vs_runtime.png",
                            "PSF error vs time: " + std::to_string(L) + " bands x " + std::to_string(Z) + " depths, " +
                                std::to_string(P) + " px, " + std::to_string(base.doe_samples) + "^2 DOE, " +
                                std::to_string(threads) + " threads",
@@ -361,7 +353,7 @@ int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out) {
                            0.01);
 
   // Recommendations.
-  const auto front = train::pareto_front(pts);
+  const auto front = viz::pareto_front(pts);
   const Row* cheapest_1pct = nullptr;
   for (size_t i : front)
     if (rows[i].rel_l1_max <= 0.01) { cheapest_1pct = &rows[i]; break; }
@@ -370,13 +362,13 @@ int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out) {
     if (r.seconds <= 2.0 * def.seconds && (!best_within_2x || r.rel_l1_max < best_within_2x->rel_l1_max)) best_within_2x = &r;
   std::string md = "# Simulator accuracy against run time\n\n";
   md += "Config: " + (args.config_path.empty() ? std::string("configs/paper.json") : args.config_path) + "; " + std::to_string(L) + " of its " + std::to_string(bands_all) +
-        " bands (band stride " + std::to_string(stride) + ", band width " + fmt("%.3g", band_width_nm) + " nm), " +
+        " bands (band stride " + std::to_string(stride) + ", band width " + format("%.3g", band_width_nm) + " nm), " +
         std::to_string(Z) + " depths, " + std::to_string(P) + "-pixel window, " + std::to_string(base.doe_samples) +
         "^2 DOE samples; test scene " + std::to_string(patch) + "x" + std::to_string(patch) + " px on " +
         std::to_string(layers.size()) + " depth layers; " + std::to_string(threads) + " threads.\n\n";
   md += "Reference: float64, exact matrix Fourier transform, 8x8 Gauss nodes per pixel, pupil oversampling " +
-        std::to_string(ref_os) + ", " + std::to_string(ref_sp) + " wavelengths per band (" + fmt("%.1f", ref_seconds) +
-        " s). Check: with the midpoint cell rule instead, the reference moves by " + fmt("%.1e", ref_check) +
+        std::to_string(ref_os) + ", " + std::to_string(ref_sp) + " wavelengths per band (" + format("%.1f", ref_seconds) +
+        " s). Check: with the midpoint cell rule instead, the reference moves by " + format("%.1e", ref_check) +
         " (worst, first and last band); errors well above that are not an artefact of the reference's own rule.\n\n";
   md += "| setting | knob | value | fwd+bwd [s] | fwd [s] | worst PSF rel. L1 | at (nm, m) | mean PSF rel. L1 | sensor PSNR [dB] | "
         "min energy in window | Pareto |\n|---|---|---|---|---|---|---|---|---|---|---|\n";
@@ -390,15 +382,15 @@ int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out) {
     md += buf;
   }
   md += "\n## Recommendations\n\n";
-  md += std::string("- The default setting's worst PSF error is ") + fmt("%.2e", def.rel_l1_max) +
+  md += std::string("- The default setting's worst PSF error is ") + format("%.2e", def.rel_l1_max) +
         (def.rel_l1_max <= 0.01 ? " (within the 1% target)" : " (**above the 1% target**)") + ", at " +
-        fmt("%.3f", def.seconds) + " s per forward+backward.\n";
+        format("%.3f", def.seconds) + " s per forward+backward.\n";
   if (cheapest_1pct)
     md += "- Cheapest setting within 1% worst error: `" + cheapest_1pct->s.name + "` (" + cheapest_1pct->s.knob + " = " +
-          cheapest_1pct->s.value + ", " + fmt("%.3f", cheapest_1pct->seconds) + " s, " + fmt("%.2e", cheapest_1pct->rel_l1_max) + ").\n";
+          cheapest_1pct->s.value + ", " + format("%.3f", cheapest_1pct->seconds) + " s, " + format("%.2e", cheapest_1pct->rel_l1_max) + ").\n";
   if (best_within_2x)
     md += "- Most accurate within twice the default's time: `" + best_within_2x->s.name + "` (" + best_within_2x->s.knob +
-          " = " + best_within_2x->s.value + ", " + fmt("%.2e", best_within_2x->rel_l1_max) + ").\n";
+          " = " + best_within_2x->s.value + ", " + format("%.2e", best_within_2x->rel_l1_max) + ").\n";
   md += "- Settings on the Pareto front (no other setting is both faster and more accurate):";
   for (size_t i : front) md += " `" + rows[i].s.name + "`";
   md += ".\n- The window rows also lose light: their error includes the energy outside the smaller window; "

@@ -59,10 +59,7 @@ int bench_psf(const Config& cfg, const AppArgs& args, BenchOutput& out) {
   const double rss_start = current_rss_mib();
 
   // Converged reference: float64, 8 Gauss nodes per pixel axis.
-  auto ref_spec = spec;
-  ref_spec.real_dtype = torch::kFloat64;
-  ref_spec.pixel_nodes.assign(spec.pixel_nodes.size(), 8);
-  ref_spec.mft_rank_tol = 0.0;  // exact matrix Fourier transform
+  const auto ref_spec = optics::converged_reference(spec);
   torch::Tensor ref;
   {
     torch::NoGradGuard g;

@@ -202,10 +202,7 @@ int bench_sim(Config cfg, const AppArgs& args, BenchOutput& out) {
   double err_hsd = 0.0, err_base = 0.0, err_joint = 0.0;
   {
     torch::NoGradGuard g;
-    auto ref_spec = spec;
-    ref_spec.real_dtype = torch::kFloat64;
-    ref_spec.pixel_nodes.assign(spec.pixel_nodes.size(), 8);
-    ref_spec.mft_rank_tol = 0.0;
+    const auto ref_spec = optics::converged_reference(spec);
     ref = optics::PsfSimulator(ref_spec).compute(h0).psf;
     err_hsd = rel_l1_max(sim.compute(h0).psf, ref);
     err_joint = rel_l1_max(joint_sim.compute(h0).psf, ref);

@@ -1,0 +1,50 @@
+// The libraries' dependency direction, read from the sources' #include lines:
+// apps -> train -> {model, data, optics, viz} -> common, with data -> optics
+// (spectral tables) and viz -> optics (display colours) only. A library that
+// includes a header from above it fails here, naming the file and the line.
+#include <catch2/catch.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <regex>
+#include <set>
+#include <string>
+
+#include "helpers.h"
+
+namespace fs = std::filesystem;
+using namespace hsd;
+
+TEST_CASE("layout: every library includes only itself and the libraries below it", "[layout]") {
+  const std::map<std::string, std::set<std::string>> allowed{
+      {"common", {"common"}},
+      {"optics", {"common", "optics"}},
+      {"viz", {"common", "optics", "viz"}},
+      {"data", {"common", "optics", "data"}},
+      {"model", {"common", "model"}},
+      {"train", {"common", "optics", "data", "model", "viz", "train"}},
+  };
+  const std::regex include(R"re(^\s*#\s*include\s*"([a-z_]+)/)re");
+  int64_t files = 0, includes = 0;
+  for (const auto& [lib, ok] : allowed) {
+    const fs::path dir = test::source_path(lib);
+    REQUIRE(fs::is_directory(dir));
+    for (const auto& e : fs::directory_iterator(dir)) {
+      const std::string ext = e.path().extension().string();
+      if (ext != ".h" && ext != ".cpp") continue;
+      ++files;
+      std::ifstream in(e.path());
+      std::string line;
+      for (int n = 1; std::getline(in, line); ++n) {
+        std::smatch m;
+        if (!std::regex_search(line, m, include)) continue;
+        ++includes;
+        INFO(e.path().filename().string() << ":" << n << ": " << line);
+        CHECK(ok.count(m[1].str()) == 1);
+      }
+    }
+  }
+  CHECK(files > 100);
+  CHECK(includes > 200);
+}
