@@ -6,11 +6,14 @@
 #include <cmath>
 #include <filesystem>
 
+#include "common/atomic_file.h"
 #include "common/error.h"
 #include "helpers.h"
 #include "model/spectral_upsampling.h"
 #include "model/unet.h"
 #include "train/loss.h"
+#include "train/metrics_csv.h"
+#include "train/metrics_log.h"
 #include "train/schedule.h"
 #include "train/trainer.h"
 
@@ -200,4 +203,39 @@ TEST_CASE("train: 600 steps on an easy scene set learn depth better than the con
   // normalisation instead 0.50 m (0.90x), the all-in-focus control 0.43 m:
   // on these scenes the layout, not yet the optics, carries the depth.
   CHECK(after.depth_rmse_m < 0.9 * after.baseline_depth_rmse_m);
+}
+
+TEST_CASE("metrics log: cells by column name, resume keeps the rows up to the checkpoint, a foreign row is refused", "[train]") {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() / ("hsd_test_metrics_log_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  train::MetricsLog log(dir.string());
+  log.add_row(0, 0.0);
+  train::ValStats v;
+  v.loss = 0.5, v.hs_psnr_db = 20.0, v.depth_rmse_m = 0.3;
+  log.set_val(v);
+  for (int k = 1; k <= 4; ++k) {
+    log.add_row(k, 0.25 * k);
+    train::StepStats s;
+    s.loss = 1.0 / k;
+    log.set_train(s);
+  }
+  log.write();
+  const train::CsvTable t = train::read_csv_table((dir / "metrics.csv").string());
+  REQUIRE(t.header == train::MetricsLog::columns());
+  REQUIRE(t.rows.size() == 5);
+  CHECK(t.number(0, "val_loss") == 0.5);
+  CHECK(t.cell(0, "train_loss").empty());
+  CHECK(t.number(2, "train_loss") == 0.5);
+  CHECK(t.number(4, "wall_s") == 1.0);
+  CHECK(t.cell(4, "val_loss").empty());
+  for (const char* f : {"curves.png", "val_psnr.png", "val_depth.png"}) CHECK(std::filesystem::exists(dir / f));
+  // Resume at step 2: rows 0-2 kept, wall time of row 2.
+  train::MetricsLog resumed(dir.string());
+  CHECK(resumed.resume(2) == 0.5);
+  CHECK(resumed.rows() == 3);
+  // A row that is not hsd_train's.
+  write_text_file((dir / "metrics.csv").string(), "step,wall_s\nabc,1\n");
+  CHECK_THROWS_AS(train::MetricsLog::check_resumable((dir / "metrics.csv").string(), 2), InputError);
+  std::filesystem::remove_all(dir);
 }

@@ -25,7 +25,7 @@
 #include "optics/fabrication_error.h"
 #include "optics/psf_source.h"
 #include "train/baselines.h"
-#include "train/metrics_csv.h"
+#include "train/metrics_log.h"
 #include "train/schedule.h"
 #include "train/shared_psf.h"
 #include "viz/plot.h"
@@ -619,33 +619,6 @@ void Trainer::write_val_pictures(const std::string& dir, int64_t step) {
                           psf_->spec().wavelengths_m, psf_->spec().depths_m);
 }
 
-const std::vector<std::string>& Trainer::metrics_columns() {
-  static const std::vector<std::string> columns{
-      "step",     "wall_s",         "train_loss",       "val_loss",         "train_hs_l1",
-      "train_depth_l1", "lr_net",   "lr_doe_m",         "val_hs_psnr_db",   "val_depth_rmse_m",
-      "val_depth_mae_m", "val_baseline_hs_psnr_db", "val_baseline_depth_rmse_m", "val_depth_saturated",
-      "val_baseline_wiener_hs_psnr_db"};
-  return columns;
-}
-
-std::vector<std::vector<std::string>> Trainer::resume_rows(const std::string& csv, int64_t start, double* wall_offset) {
-  const auto& columns = metrics_columns();
-  std::vector<std::vector<std::string>> rows;
-  for (auto c : read_csv_rows(csv)) {
-    // Rows up to the checkpoint's step were written before it; a row of an
-    // earlier hsd (fewer columns) is padded with empty cells.
-    char* end = nullptr;
-    const long long row_step = c.size() > 1 ? std::strtoll(c[0].c_str(), &end, 10) : -1;
-    if (c.size() < 2 || end == c[0].c_str() || *end != '\0' || c.size() > columns.size())
-      input_error(csv, "a row that is not one of hsd_train's (\"" + (c.empty() ? std::string() : c[0]) + "...\"); remove the file to resume without it");
-    if (row_step > start) continue;
-    c.resize(columns.size());
-    rows.push_back(c);
-    if (wall_offset) *wall_offset = std::atof(c[1].c_str());
-  }
-  return rows;
-}
-
 void Trainer::start_from(const std::string& path) {
   if (!std::filesystem::is_regular_file(path)) input_error(path, "no such checkpoint file (train.init_checkpoint)");
   const TensorDict d = load_tensor_dict(path);
@@ -671,77 +644,26 @@ void Trainer::check_resume(const std::string& out_dir) {
   const std::string ckpt = out_dir + "/checkpoints/last.pt";
   if (!std::filesystem::is_regular_file(ckpt)) input_error(ckpt, "no checkpoint to resume from (--resume)");
   const int64_t start = load_checkpoint(ckpt);
-  if (writes_outputs()) resume_rows(out_dir + "/metrics.csv", start, nullptr);
+  if (writes_outputs()) MetricsLog::check_resumable(out_dir + "/metrics.csv", start);
 }
 
 void Trainer::run(const std::string& out_dir, bool resume) {
   const auto& T = cfg_.train;
   const std::string ckpt_dir = out_dir + "/checkpoints", val_dir = out_dir + "/val";
-  const std::string ckpt = ckpt_dir + "/last.pt", csv = out_dir + "/metrics.csv";
+  const std::string ckpt = ckpt_dir + "/last.pt";
   const bool writer = writes_outputs();
   if (writer) {
     make_dirs(ckpt_dir);
     make_dirs(val_dir);
   }
   int64_t start = 0;
-  // Rows of metrics.csv: kept in memory, the file rewritten atomically.
-  const std::vector<std::string>& columns = metrics_columns();
-  auto col = [&](const char* name) {
-    return size_t(std::find(columns.begin(), columns.end(), std::string(name)) - columns.begin());
-  };
-  std::vector<std::vector<std::string>> rows;  // cells; empty where not measured
+  MetricsLog metrics(writer ? out_dir : std::string());
   double wall_offset = 0.0;
   if (resume) {
     start = load_checkpoint(ckpt);
-    if (writer) rows = resume_rows(csv, start, &wall_offset);
+    wall_offset = metrics.resume(start);
     log::info("resuming from " + ckpt + " at step " + std::to_string(start));
   }
-  auto num = [](const std::string& c) { return c.empty() ? NAN : std::atof(c.c_str()); };
-  auto write_outputs = [&] {
-    if (!writer) return;
-    std::string text;
-    for (size_t i = 0; i < columns.size(); ++i) text += (i ? "," : "") + columns[i];
-    text += "\n";
-    std::vector<double> xs, tr, vx, vl, psnr, base_psnr, rmse, base_rmse, wx, wiener_psnr;
-    for (const auto& c : rows) {
-      for (size_t i = 0; i < c.size(); ++i) text += (i ? "," : "") + c[i];
-      text += "\n";
-      xs.push_back(num(c[col("step")]));
-      tr.push_back(num(c[col("train_loss")]));
-      if (c[col("val_loss")].empty()) continue;
-      vx.push_back(num(c[col("step")]));
-      vl.push_back(num(c[col("val_loss")]));
-      psnr.push_back(num(c[col("val_hs_psnr_db")]));
-      base_psnr.push_back(num(c[col("val_baseline_hs_psnr_db")]));
-      rmse.push_back(num(c[col("val_depth_rmse_m")]));
-      base_rmse.push_back(num(c[col("val_baseline_depth_rmse_m")]));
-      if (!c[col("val_baseline_wiener_hs_psnr_db")].empty())
-        wx.push_back(vx.back()), wiener_psnr.push_back(num(c[col("val_baseline_wiener_hs_psnr_db")]));
-    }
-    write_text_file(csv, text);
-    viz::write_line_plot(out_dir + "/curves.png", "loss (L1 cube + weighted depth terms)", "step",
-                    {{"train", xs, tr, {200, 120, 30}}, {"validation", vx, vl, {30, 30, 200}}}, true);
-    if (vx.empty()) return;
-    // The baselines as lines beside the model's curves: a curve that does not
-    // leave its baseline has learned nothing.
-    std::vector<viz::Series> hs_lines{{"model", vx, psnr, {30, 140, 30}}, {"upsampling alone", vx, base_psnr, {150, 150, 150}}};
-    if (!wx.empty()) hs_lines.push_back({"Wiener + upsampling", wx, wiener_psnr, {90, 90, 200}});
-    viz::write_line_plot(out_dir + "/val_psnr.png", "validation hyperspectral PSNR [dB]", "step", hs_lines, false);
-    viz::write_line_plot(out_dir + "/val_depth.png", "validation depth RMSE [m]", "step",
-                    {{"model", vx, rmse, {200, 60, 30}}, {"constant depth", vx, base_rmse, {150, 150, 150}}},
-                    false);
-  };
-  auto val_cells = [&](std::vector<std::string>& row, const ValStats& v) {
-    row[col("val_loss")] = format("%.6g", v.loss);
-    row[col("val_hs_psnr_db")] = format("%.4f", v.hs_psnr_db);
-    row[col("val_depth_rmse_m")] = format("%.5f", v.depth_rmse_m);
-    row[col("val_depth_mae_m")] = format("%.5f", v.depth_mae_m);
-    row[col("val_baseline_hs_psnr_db")] = format("%.4f", v.baseline_hs_psnr_db);
-    row[col("val_baseline_depth_rmse_m")] = format("%.5f", v.baseline_depth_rmse_m);
-    row[col("val_depth_saturated")] = format("%.4f", v.depth_saturated);
-    if (std::isfinite(v.baseline_wiener_hs_psnr_db))
-      row[col("val_baseline_wiener_hs_psnr_db")] = format("%.4f", v.baseline_wiener_hs_psnr_db);
-  };
   auto log_val = [&](int64_t step, const ValStats& v) {
     char buf[400], wb[64] = "";
     if (std::isfinite(v.baseline_wiener_hs_psnr_db))
@@ -772,13 +694,11 @@ void Trainer::run(const std::string& out_dir, bool resume) {
   int64_t rate_n = 0;
   if (start == 0 && T.steps > 0) {  // where validation starts from
     const ValStats v = validate();
-    std::vector<std::string> row(columns.size());
-    row[col("step")] = "0", row[col("wall_s")] = "0.000";
-    val_cells(row, v);
-    rows.push_back(row);
+    metrics.add_row(0, 0.0);
+    metrics.set_val(v);
     log_val(0, v);
     if (writer) write_val_pictures(val_dir, 0);
-    write_outputs();
+    metrics.write();
   }
   for (int64_t k = start; k < T.steps; ++k) {
     const Batch b = next.get();
@@ -788,19 +708,15 @@ void Trainer::run(const std::string& out_dir, bool resume) {
     const bool last = k + 1 == T.steps;
     const bool do_val = (k + 1) % T.val_every == 0 || last;
     if ((k + 1) % T.log_every == 0 || do_val || k == start) {
-      std::vector<std::string> row(columns.size());
-      row[col("step")] = std::to_string(k + 1), row[col("wall_s")] = format("%.3f", wall());
-      row[col("train_loss")] = format("%.6g", st.loss), row[col("train_hs_l1")] = format("%.6g", st.hs);
-      row[col("train_depth_l1")] = format("%.6g", st.depth), row[col("lr_net")] = format("%.4g", st.lr_net);
-      row[col("lr_doe_m")] = format("%.4g", st.lr_doe);
+      metrics.add_row(k + 1, wall());
+      metrics.set_train(st);
       if (do_val) {
         const ValStats v = validate();
-        val_cells(row, v);
+        metrics.set_val(v);
         if (last) log_val(k + 1, v);
       }
-      rows.push_back(row);
       if (do_val && writer) write_val_pictures(val_dir, k + 1);
-      write_outputs();
+      metrics.write();
     }
     if ((k + 1) % T.checkpoint_every == 0 || last) {
       check_replicas_agree(k + 1);

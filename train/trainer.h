@@ -33,6 +33,7 @@
 #include "train/distributed.h"
 #include "train/loss.h"
 #include "train/precision.h"
+#include "train/step_stats.h"
 
 namespace hsd::train {
 
@@ -43,30 +44,6 @@ struct Batch {
   torch::Tensor radiance;   // [B, L, S', S']
   torch::Tensor depth_m;    // [B, 1, S', S']
   int64_t first_index = 0;  // index of image 0 within the global batch (keys its noise draws)
-};
-
-struct StepStats {
-  double loss = 0, hs = 0, depth = 0, tv = 0, lr_net = 0, lr_doe = 0;
-};
-
-// Seconds per phase of Trainer::step, summed over `steps` steps (set_profile).
-// CPU timings (a CUDA device would need a synchronisation per phase).
-struct StepProfile {
-  double psf_forward = 0, sensor_forward = 0, network_forward = 0, loss = 0;
-  double network_backward = 0, sensor_backward = 0, psf_backward = 0, optimizer = 0;
-  int64_t steps = 0;
-};
-
-struct ValStats {
-  double loss = 0, hs_psnr_db = 0, depth_rmse_m = 0, depth_mae_m = 0, peak = 0;
-  // Baselines on the same patches and pixels (train/baselines.h): the
-  // upsampling cube of the same sensor image, and the constant depth.
-  double baseline_hs_psnr_db = 0, baseline_depth_rmse_m = 0, baseline_depth_mae_m = 0;
-  // With the pre-inversion on: the Wiener baseline (baselines.h) on the same
-  // patches; NaN when the network has no pre-inversion.
-  double baseline_wiener_hs_psnr_db = std::nan("");
-  // Fraction of pixels whose depth sigmoid is within 0.02 of 0 or 1 (saturated).
-  double depth_saturated = 0;
 };
 
 // data.render_margin_px resolved: the PSF's reach plus 3σ of the soft layer
@@ -121,8 +98,6 @@ class Trainer {
   // Before any data is loaded: InputError (exit 2) naming the file if
   // out_dir's checkpoint or metrics.csv cannot be resumed from.
   void check_resume(const std::string& out_dir);
-  // metrics.csv's columns, in order (docs/interfaces.md, then additions).
-  static const std::vector<std::string>& metrics_columns();
   bool writes_outputs() const { return !group_ || group_->rank() == 0; }
 
   torch::Tensor height() const { return doe_.height().detach(); }
@@ -147,9 +122,6 @@ class Trainer {
   const optics::SensorModel& sensor() const { return sensor_; }
 
  private:
-  // metrics.csv's rows up to step `start` (checked; short rows of an earlier
-  // hsd padded); the last kept row's wall time into *wall_offset.
-  static std::vector<std::vector<std::string>> resume_rows(const std::string& csv, int64_t start, double* wall_offset);
   void write_val_pictures(const std::string& dir, int64_t step);
   // The network on the centre patch of a rendered window [B, 3, S', S'] (the
   // pre-inversion, when on, of the whole window, then its centre).
