@@ -24,6 +24,7 @@
 #include "common/atomic_file.h"
 #include "common/error.h"
 #include "common/log.h"
+#include "common/sample_stats.h"
 #include "common/subprocess.h"
 #include "train/metrics_csv.h"
 #include "viz/plot.h"
@@ -59,19 +60,6 @@ std::vector<std::pair<double, double>> val_curve(const std::string& csv) {
   for (size_t r = 0; r < t.rows.size(); ++r)
     if (!t.cell(r, "val_loss").empty()) out.emplace_back(t.number(r, "wall_s"), t.number(r, "val_loss"));
   return out;
-}
-
-struct Stat {
-  double mean = 0, sd = 0;  // sample standard deviation (0 for one seed)
-  size_t n = 0;
-};
-Stat stat(const std::vector<double>& v) {
-  Stat s;
-  s.n = v.size();
-  for (double x : v) s.mean += x / double(v.size());
-  for (double x : v) s.sd += (x - s.mean) * (x - s.mean);
-  s.sd = v.size() > 1 ? std::sqrt(s.sd / double(v.size() - 1)) : 0.0;
-  return s;
 }
 
 int run(const AppArgs& args) {
@@ -170,7 +158,7 @@ int run(const AppArgs& args) {
   auto pm = [&](const std::string& arm, const std::string& k, const char* f) -> std::string {
     const auto it = results[arm].find(k);
     if (it == results[arm].end() || it->second.empty()) return "";
-    const Stat st = stat(it->second);
+    const SampleStats st = sample_stats(it->second);
     std::snprintf(buf, sizeof buf, f, st.mean, st.sd);
     return buf;
   };
@@ -186,7 +174,7 @@ int run(const AppArgs& args) {
       if (!r.empty() && r.size() == b.size()) {
         std::vector<double> q;
         for (size_t i = 0; i < r.size(); ++i) q.push_back(r[i] / b[i]);
-        const Stat st = stat(q);
+        const SampleStats st = sample_stats(q);
         std::snprintf(buf, sizeof buf, "%.2f ± %.2f", st.mean, st.sd);
         ratio = buf;
       }
@@ -220,7 +208,7 @@ int run(const AppArgs& args) {
           md += " |";
           continue;
         }
-        const Stat sa = stat(va), sb = stat(vb);
+        const SampleStats sa = sample_stats(va), sb = sample_stats(vb);
         const double d = sa.mean - sb.mean;
         const double se = std::sqrt(sa.sd * sa.sd / double(sa.n) + sb.sd * sb.sd / double(sb.n));
         const bool sig = sa.n > 1 && sb.n > 1 && std::abs(d) > 2.0 * se;

@@ -17,6 +17,7 @@
 #include "common/app.h"
 #include "common/atomic_file.h"
 #include "common/error.h"
+#include "common/sample_stats.h"
 #include "common/log.h"
 #include "common/tensor_io.h"
 #include "common/text_format.h"
@@ -258,15 +259,125 @@ Export export_doe(const AppArgs& args, const Config& cfg, const optics::Material
   return ex;
 }
 
+// What every fabricated surface of the tolerance sweep is measured with: the
+// simulator on the refined grid, the point-source CRLB, and the checkpoint's
+// network on the test split (when the DOE is a checkpoint and its dataset is
+// there), each against the reference: the K-level design without error.
+struct ToleranceBench {
+  ToleranceBench(const AppArgs& args, const Config& cfg, const optics::Material& material, const Inputs& in,
+                 const std::string& doe_file, const optics::LevelMap& q)
+      : cfg(cfg),
+        material(material),
+        s(cfg.fabrication.tolerance.subsamples),
+        spec(optics::make_psf_spec(refined(cfg.optics, s), material, torch::kCPU)),
+        sim(spec),
+        geometry(optics::make_fisher_geometry(spec, cfg.fisher.window_px, cfg.fisher.pixel_nodes)),
+        fisher(optics::fisher_settings(cfg)),
+        hq(optics::level_heights(q)),
+        process{cfg.optics.doe_pitch_m, s, in.max_height_m, cfg.fabrication.levels, 0.0},
+        scratch(args.out_dir + "/.tolerance_eval") {
+    if (cfg.fabrication.tolerance.network && in.checkpoint) {
+      if (std::filesystem::exists(cfg.data.root + "/manifest.json")) {
+        trainer = std::make_unique<train::Trainer>(cfg);
+        trainer->load_checkpoint(doe_file);
+      } else {
+        log::warn("no dataset at " + cfg.data.root + " (data.root): the sweep reports PSFs and CRLBs only");
+      }
+    }
+    ref_surface = optics::fabricated_surface(hq, {}, process, cfg.seed);
+    ref_psf = psf(ref_surface);
+    ref_crlb = crlb(ref_surface);
+    ref_net = network(ref_psf);
+  }
+
+  bool with_network() const { return trainer != nullptr; }
+  torch::Tensor psf(const torch::Tensor& surface) const { return simulate(sim, surface); }
+  double crlb(const torch::Tensor& surface) const {
+    return optics::crlb_report(geometry, material, surface, fisher).aggregate.item<double>();
+  }
+  // (HS PSNR [dB], depth RMSE [m]) on the test split with the scenes imaged
+  // through `psf` (undefined: the design's own PSFs, as trained); NaNs without
+  // a network. The pre-inversion keeps the design's PSFs.
+  std::pair<double, double> network(const torch::Tensor& psf) const {
+    if (!trainer) return {std::nan(""), std::nan("")};
+    const train::EvalResult r = train::evaluate(*trainer, cfg, "test", scratch,
+                                                psf.defined() ? optics::fixed_psf_provider(psf.to(torch::kFloat32)) : nullptr);
+    std::filesystem::remove_all(scratch);
+    return {r.mean.hs_psnr_db, r.mean.depth_rmse_m};
+  }
+
+  static OpticsConfig refined(OpticsConfig o, int64_t s) {
+    o.doe_samples *= s;
+    o.doe_pitch_m /= double(s);
+    return o;
+  }
+
+  const Config& cfg;
+  const optics::Material& material;
+  const int64_t s;  // sub-cells per DOE cell and axis
+  const optics::PsfSpec spec;
+  const optics::PsfSimulator sim;
+  const optics::FisherGeometry geometry;
+  const optics::FisherSettings fisher;
+  const torch::Tensor hq;              // the K-level heights on the DOE grid [N, N] m
+  optics::FabricationProcess process;  // how the refined surface is made from them
+  const std::string scratch;          // hsd_eval's outputs for one surface, removed after it
+  std::unique_ptr<train::Trainer> trainer;
+  torch::Tensor ref_surface, ref_psf;  // the design without error: surface [sN, sN] m, PSFs
+  double ref_crlb = 0;
+  std::pair<double, double> ref_net;  // its (HS PSNR, depth RMSE); NaNs without a network
+};
+
+// One error swept alone over its sizes: a markdown row per size, its JSON row,
+// and its plots (paths appended to `plots`).
+Json sweep_one(const optics::ToleranceSweep& sw, const ToleranceBench& b, const Config& cfg, const std::string& out_dir,
+               std::string& md, std::vector<std::string>& plots, log::Progress& progress) {
+  const bool net_on = b.with_network();
+  Json r;
+  r["kind"] = sw.name;
+  r["size_label"] = sw.size_label;
+  r["sizes"] = sw.sizes;
+  std::vector<double> l1_mean, l1_max, shift, cr, psnr, rmse;
+  for (double size : sw.sizes) {
+    // Size 0 is the reference surface itself (fabricated_surface is exact there): its row is the reference's.
+    const bool zero = size == 0.0;
+    const torch::Tensor surface =
+        zero ? b.ref_surface
+             : optics::fabricated_surface(b.hq, optics::tolerance_error(sw, size, cfg.fabrication.tolerance), b.process, cfg.seed + 1000);
+    const torch::Tensor psf = zero ? b.ref_psf : b.psf(surface);
+    const PsfChange c = zero ? PsfChange{} : psf_change(psf, b.ref_psf);
+    l1_mean.push_back(c.l1_mean), l1_max.push_back(c.l1_max), shift.push_back(c.shift_px);
+    cr.push_back(zero ? b.ref_crlb : b.crlb(surface));
+    const auto net = zero ? b.ref_net : b.network(psf);
+    psnr.push_back(net.first), rmse.push_back(net.second);
+    md += "| " + sw.size_label + " | " + format_g(size * sw.unit_scale, 3) + " | " + format_g(c.l1_mean, 3) + " | " +
+          format_g(c.l1_max, 3) + " | " + format_g(c.shift_px, 3) + " | " + format_g(cr.back(), 3) + " | " +
+          (net_on ? format_g(net.first) : std::string("-")) + " | " + (net_on ? format_g(net.second, 3) : std::string("-")) + " |\n";
+    progress.step();
+  }
+  r["psf_rel_l1_mean"] = l1_mean, r["psf_rel_l1_max"] = l1_max, r["psf_centroid_shift_px"] = shift, r["crlb_aggregate"] = cr;
+  if (net_on) r["hs_psnr_db"] = psnr, r["depth_rmse_m"] = rmse;
+  std::vector<double> x;
+  for (double v : sw.sizes) x.push_back(v * sw.unit_scale);
+  auto plot = [&](const std::string& name, const std::string& title, const std::vector<double>& y) {
+    const std::string f = out_dir + "/.tol_" + sw.name + "_" + name + ".png";
+    viz::write_line_plot(f, title, sw.size_label, {{title, x, y, {150, 60, 20}}}, false);
+    plots.push_back(f);
+  };
+  plot("l1", "PSF change (rel. L1, mean)", l1_mean);
+  plot("crlb", "CRLB (" + cfg.fisher.aggregate + ")", cr);
+  if (net_on) plot("psnr", "HS PSNR [dB]", psnr), plot("rmse", "depth RMSE [m]", rmse);
+  return r;
+}
+
 // fabrication.tolerance.draws: the errors together, drawn as training draws
 // them (optics::draw_fabrication_error) from draw_scales; draw d is seeded by
 // d alone, so every DOE meets the same surfaces' errors. Per draw and as mean
 // ± SD: PSF change, CRLB and the network's loss against the reference.
-template <class Crlb, class Network>
-Json random_draws(const FabricationToleranceConfig& T, const torch::Tensor& hq, optics::FabricationProcess process,
-                  const optics::PsfSimulator& sim, const torch::Tensor& ref_psf, const std::pair<double, double>& ref_net,
-                  const Crlb& crlb, const Network& network, bool with_network, std::string& md, log::Progress& progress) {
+Json random_draws(const FabricationToleranceConfig& T, const ToleranceBench& b, std::string& md, log::Progress& progress) {
   const auto& E = T.draw_scales;
+  const bool net_on = b.with_network();
+  optics::FabricationProcess process = b.process;
   md += "\n## Random draws\n\n" + std::to_string(T.draws) + " draws of the errors together (as `train.fabrication_noise` draws them): etch-depth error ~ N(0, " +
         format_g(100 * E.height_scale_error) + " %), roughness " + format_g(E.roughness_rms_m * 1e9) + " nm RMS over " +
         format_g(E.roughness_correlation_m * 1e6) + " um, edge blur sigma ~ U(0, " + format_g(E.edge_blur_m * 1e6) + " um), " +
@@ -280,39 +391,29 @@ Json random_draws(const FabricationToleranceConfig& T, const torch::Tensor& hq, 
     double angle = 0;
     const FabricationErrorConfig e = optics::draw_fabrication_error(E, rng, &angle);
     process.decentre_angle_rad = angle;
-    const torch::Tensor surface = optics::fabricated_surface(hq, e, process, rng());
-    const torch::Tensor psf = simulate(sim, surface);
-    const PsfChange c = psf_change(psf, ref_psf);
-    const auto net = network(psf);
-    l1.push_back(c.l1_mean), cr.push_back(crlb(surface));
-    dpsnr.push_back(ref_net.first - net.first), drmse.push_back(net.second - ref_net.second);
+    const torch::Tensor surface = optics::fabricated_surface(b.hq, e, process, rng());
+    const torch::Tensor psf = b.psf(surface);
+    const PsfChange c = psf_change(psf, b.ref_psf);
+    const auto net = b.network(psf);
+    l1.push_back(c.l1_mean), cr.push_back(b.crlb(surface));
+    dpsnr.push_back(b.ref_net.first - net.first), drmse.push_back(net.second - b.ref_net.second);
     rows.push_back({{"height_scale_error", e.height_scale_error}, {"edge_blur_m", e.edge_blur_m}, {"decentre_m", e.decentre_m},
                     {"psf_rel_l1_mean", c.l1_mean}, {"crlb_aggregate", cr.back()}, {"hs_psnr_db", net.first}, {"depth_rmse_m", net.second}});
     md += "| " + std::to_string(d) + " | " + format_g(100 * e.height_scale_error, 3) + " | " + format_g(e.edge_blur_m * 1e6, 3) + " | " +
           format_g(e.decentre_m * 1e6, 3) + " | " + format_g(c.l1_mean, 3) + " | " + format_g(cr.back(), 3) + " | " +
-          (with_network ? format("%+.3f", dpsnr.back()) : std::string("-")) + " | " +
-          (with_network ? format("%+.4f", drmse.back()) : std::string("-")) + " |\n";
+          (net_on ? format("%+.3f", dpsnr.back()) : std::string("-")) + " | " +
+          (net_on ? format("%+.4f", drmse.back()) : std::string("-")) + " |\n";
     progress.step();
   }
-  auto mean_sd = [](const std::vector<double>& v) {
-    double m = 0, q = 0;
-    for (double x : v) m += x;
-    m /= double(v.size());
-    for (double x : v) q += (x - m) * (x - m);
-    return std::pair<double, double>{m, v.size() > 1 ? std::sqrt(q / double(v.size() - 1)) : 0.0};
-  };
-  const auto [l1m, l1s] = mean_sd(l1);
-  const auto [crm, crs] = mean_sd(cr);
-  const auto [pm, ps] = mean_sd(dpsnr);
-  const auto [rm, rs] = mean_sd(drmse);
-  md += "| mean ± SD | | | | " + format_g(l1m, 3) + " ± " + format_g(l1s, 2) + " | " + format_g(crm, 3) + " ± " + format_g(crs, 2) + " | " +
-        (with_network ? format("%+.3f ± %.3f", pm, ps) : std::string("-")) + " | " +
-        (with_network ? format("%+.4f ± %.4f", rm, rs) : std::string("-")) + " |\n";
+  const SampleStats L1 = sample_stats(l1), CR = sample_stats(cr), P = sample_stats(dpsnr), R = sample_stats(drmse);
+  md += "| mean ± SD | | | | " + format_g(L1.mean, 3) + " ± " + format_g(L1.sd, 2) + " | " + format_g(CR.mean, 3) + " ± " + format_g(CR.sd, 2) + " | " +
+        (net_on ? format("%+.3f ± %.3f", P.mean, P.sd) : std::string("-")) + " | " +
+        (net_on ? format("%+.4f ± %.4f", R.mean, R.sd) : std::string("-")) + " |\n";
   Json j{{"scales", {{"height_scale_error", E.height_scale_error}, {"roughness_rms_m", E.roughness_rms_m},
                      {"roughness_correlation_m", E.roughness_correlation_m}, {"edge_blur_m", E.edge_blur_m}, {"decentre_m", E.decentre_m}}},
-         {"rows", rows}, {"psf_rel_l1_mean", {{"mean", l1m}, {"sd", l1s}}}, {"crlb_aggregate", {{"mean", crm}, {"sd", crs}}}};
-  if (with_network)
-    j["hs_psnr_loss_db"] = {{"mean", pm}, {"sd", ps}}, j["depth_rmse_loss_m"] = {{"mean", rm}, {"sd", rs}};
+         {"rows", rows}, {"psf_rel_l1_mean", {{"mean", L1.mean}, {"sd", L1.sd}}}, {"crlb_aggregate", {{"mean", CR.mean}, {"sd", CR.sd}}}};
+  if (net_on)
+    j["hs_psnr_loss_db"] = {{"mean", P.mean}, {"sd", P.sd}}, j["depth_rmse_loss_m"] = {{"mean", R.mean}, {"sd", R.sd}};
   return j;
 }
 
@@ -320,109 +421,40 @@ Json random_draws(const FabricationToleranceConfig& T, const torch::Tensor& hq, 
 Json tolerance(const AppArgs& args, const Config& cfg, const optics::Material& material, const Inputs& in,
                const std::string& doe_file, const optics::LevelMap& q, std::string& md) {
   const auto& T = cfg.fabrication.tolerance;
-  const int64_t s = T.subsamples, N = cfg.optics.doe_samples;
-  const double H = in.max_height_m;
-  OpticsConfig fine = cfg.optics;
-  fine.doe_samples = N * s;
-  fine.doe_pitch_m = cfg.optics.doe_pitch_m / double(s);
-  const optics::PsfSpec spec = optics::make_psf_spec(fine, material, torch::kCPU);
-  const optics::PsfSimulator sim(spec);
-  const optics::FisherGeometry g = optics::make_fisher_geometry(spec, cfg.fisher.window_px, cfg.fisher.pixel_nodes);
-  const optics::FisherSettings fs = optics::fisher_settings(cfg);
-  const torch::Tensor hq = optics::level_heights(q);
-  const optics::FabricationProcess process{cfg.optics.doe_pitch_m, s, H, cfg.fabrication.levels, 0.0};
-
-  // The network, when the DOE is a checkpoint and its dataset is there.
-  std::unique_ptr<train::Trainer> trainer;
-  const std::string manifest = cfg.data.root + "/manifest.json";
-  if (T.network && in.checkpoint) {
-    if (std::filesystem::exists(manifest)) {
-      trainer = std::make_unique<train::Trainer>(cfg);
-      trainer->load_checkpoint(doe_file);
-    } else {
-      log::warn("no dataset at " + cfg.data.root + " (data.root): the sweep reports PSFs and CRLBs only");
-    }
-  }
-  const std::string scratch = args.out_dir + "/.tolerance_eval";
-  auto network = [&](const torch::Tensor& psf) -> std::pair<double, double> {
-    if (!trainer) return {std::nan(""), std::nan("")};
-    const train::EvalResult r =
-        train::evaluate(*trainer, cfg, "test", scratch, psf.defined() ? optics::fixed_psf_provider(psf.to(torch::kFloat32)) : nullptr);
-    std::filesystem::remove_all(scratch);
-    return {r.mean.hs_psnr_db, r.mean.depth_rmse_m};
-  };
-  auto crlb = [&](const torch::Tensor& surface) { return optics::crlb_report(g, material, surface, fs).aggregate.item<double>(); };
-
   const auto sweeps = optics::tolerance_sweeps(T);
   int64_t total = T.draws;
   for (const auto& sw : sweeps) total += int64_t(sw.sizes.size());
-  log::info("tolerance sweep: " + std::to_string(total) + " fabricated surfaces on " + std::to_string(N * s) + "^2 sub-cells (" +
-            std::to_string(s) + "x" + std::to_string(s) + " per DOE cell)" + (trainer ? ", each evaluated by the network" : ""));
+  log::info("tolerance sweep: " + std::to_string(total) + " fabricated surfaces on " + std::to_string(cfg.optics.doe_samples * T.subsamples) +
+            "^2 sub-cells (" + std::to_string(T.subsamples) + "x" + std::to_string(T.subsamples) + " per DOE cell)" +
+            (T.network && in.checkpoint ? ", each evaluated by the network" : ""));
   const auto t0 = std::chrono::steady_clock::now();
-  const torch::Tensor ref_surface = optics::fabricated_surface(hq, {}, process, cfg.seed);
-  const torch::Tensor ref_psf = simulate(sim, ref_surface);
-  const double ref_crlb = crlb(ref_surface);
-  const auto design_net = network({});  // through the design's own PSFs (as trained)
-  const auto ref_net = network(ref_psf);
+  const ToleranceBench b(args, cfg, material, in, doe_file, q);
+  const auto design_net = b.network({});  // through the design's own PSFs (as trained)
+  const int64_t K = cfg.fabrication.levels;
   Json j;
-  j["subsamples"] = s;
-  j["levels"] = cfg.fabrication.levels;
-  j["reference"] = {{"crlb_aggregate", ref_crlb}, {"hs_psnr_db", ref_net.first}, {"depth_rmse_m", ref_net.second}};
+  j["subsamples"] = b.s;
+  j["levels"] = K;
+  j["reference"] = {{"crlb_aggregate", b.ref_crlb}, {"hs_psnr_db", b.ref_net.first}, {"depth_rmse_m", b.ref_net.second}};
   j["design"] = {{"hs_psnr_db", design_net.first}, {"depth_rmse_m", design_net.second}};
   j["crlb_aggregate_name"] = cfg.fisher.aggregate;
-  Json rows = Json::array();
-  std::vector<std::string> plots;
-  md += "\n# Tolerance\n\nEach error alone, against the " + std::to_string(cfg.fabrication.levels) +
-        "-level design without error (CRLB " + format_g(ref_crlb, 3) + " layers/bands, " + cfg.fisher.aggregate + ")";
-  if (trainer)
+  md += "\n# Tolerance\n\nEach error alone, against the " + std::to_string(K) + "-level design without error (CRLB " +
+        format_g(b.ref_crlb, 3) + " layers/bands, " + cfg.fisher.aggregate + ")";
+  if (b.with_network())
     md += "; the network through the design's own PSFs: HS PSNR " + format_g(design_net.first) + " dB, depth RMSE " +
-          format_g(design_net.second, 3) + " m; through the " + std::to_string(cfg.fabrication.levels) + "-level map: " +
-          format_g(ref_net.first) + " dB, " + format_g(ref_net.second, 3) + " m (test split)";
-  md += ". Surfaces on " + std::to_string(s) + "x" + std::to_string(s) + " sub-cells per DOE cell.\n\n";
+          format_g(design_net.second, 3) + " m; through the " + std::to_string(K) + "-level map: " + format_g(b.ref_net.first) +
+          " dB, " + format_g(b.ref_net.second, 3) + " m (test split)";
+  md += ". Surfaces on " + std::to_string(b.s) + "x" + std::to_string(b.s) + " sub-cells per DOE cell.\n\n";
   md += "| error | size | PSF rel. L1 mean | max | centroid shift [px] | CRLB | HS PSNR [dB] | depth RMSE [m] |\n"
         "|---|---|---|---|---|---|---|---|\n";
   log::Progress progress("tolerance", long(total));
-  for (const auto& sw : sweeps) {
-    Json r;
-    r["kind"] = sw.name;
-    r["size_label"] = sw.size_label;
-    r["sizes"] = sw.sizes;
-    std::vector<double> l1_mean, l1_max, shift, cr, psnr, rmse;
-    for (size_t i = 0; i < sw.sizes.size(); ++i) {
-      // Size 0 is the reference surface itself (fabricated_surface is exact there): its row is the reference's.
-      const bool zero = sw.sizes[i] == 0.0;
-      const torch::Tensor surface =
-          zero ? ref_surface : optics::fabricated_surface(hq, optics::tolerance_error(sw, sw.sizes[i], T), process, cfg.seed + 1000);
-      const torch::Tensor psf = zero ? ref_psf : simulate(sim, surface);
-      const PsfChange c = zero ? PsfChange{} : psf_change(psf, ref_psf);
-      l1_mean.push_back(c.l1_mean), l1_max.push_back(c.l1_max), shift.push_back(c.shift_px);
-      cr.push_back(zero ? ref_crlb : crlb(surface));
-      const auto net = zero ? ref_net : network(psf);
-      psnr.push_back(net.first), rmse.push_back(net.second);
-      md += "| " + sw.size_label + " | " + format_g(sw.sizes[i] * sw.unit_scale, 3) + " | " + format_g(c.l1_mean, 3) + " | " +
-            format_g(c.l1_max, 3) + " | " + format_g(c.shift_px, 3) + " | " + format_g(cr.back(), 3) + " | " + (trainer ? format_g(net.first) : std::string("-")) + " | " +
-            (trainer ? format_g(net.second, 3) : std::string("-")) + " |\n";
-      progress.step();
-    }
-    r["psf_rel_l1_mean"] = l1_mean, r["psf_rel_l1_max"] = l1_max, r["psf_centroid_shift_px"] = shift, r["crlb_aggregate"] = cr;
-    if (trainer) r["hs_psnr_db"] = psnr, r["depth_rmse_m"] = rmse;
-    rows.push_back(r);
-    std::vector<double> x;
-    for (double v : sw.sizes) x.push_back(v * sw.unit_scale);
-    auto plot = [&](const std::string& name, const std::string& title, const std::vector<double>& y) {
-      const std::string f = args.out_dir + "/.tol_" + sw.name + "_" + name + ".png";
-      viz::write_line_plot(f, title, sw.size_label, {{title, x, y, {150, 60, 20}}}, false);
-      plots.push_back(f);
-    };
-    plot("l1", "PSF change (rel. L1, mean)", l1_mean);
-    plot("crlb", "CRLB (" + cfg.fisher.aggregate + ")", cr);
-    if (trainer) plot("psnr", "HS PSNR [dB]", psnr), plot("rmse", "depth RMSE [m]", rmse);
-  }
-  if (T.draws > 0) j["draws"] = random_draws(T, hq, process, sim, ref_psf, ref_net, crlb, network, trainer != nullptr, md, progress);
+  Json rows = Json::array();
+  std::vector<std::string> plots;
+  for (const auto& sw : sweeps) rows.push_back(sweep_one(sw, b, cfg, args.out_dir, md, plots, progress));
+  if (T.draws > 0) j["draws"] = random_draws(T, b, md, progress);
   progress.finish();
   j["sweeps"] = rows;
   j["seconds"] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  viz::write_montage(plots, trainer ? 4 : 2, 1.0, args.out_dir + "/tolerance.png");
+  viz::write_montage(plots, b.with_network() ? 4 : 2, 1.0, args.out_dir + "/tolerance.png");
   md += "\n![tolerance](tolerance.png)\n";
   return j;
 }

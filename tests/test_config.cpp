@@ -1,11 +1,13 @@
 // Config parsing: extends, --set, typed values, and one clear error naming the
 // key path for unknown keys, wrong types and out-of-range values.
 #include <catch2/catch.hpp>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
 #include "common/config.h"
 #include "common/error.h"
+#include "common/sample_stats.h"
 #include "helpers.h"
 
 using namespace hsd;
@@ -85,4 +87,14 @@ TEST_CASE("extends chains merge objects and detect cycles", "[config]") {
   CHECK_THROWS_WITH(load_json_with_extends(c2), Catch::Contains("cycle"));
   const std::string broken = tmp_file("broken.json", R"({"optics": )");
   CHECK_THROWS_WITH(load_json_with_extends(broken), Catch::Contains("broken.json") && Catch::Contains("invalid JSON"));
+}
+
+TEST_CASE("sample_stats gives the mean and the n-1 standard deviation", "[common]") {
+  const SampleStats s = sample_stats({1.0, 2.0, 4.0});
+  CHECK(s.n == 3);
+  CHECK(s.mean == Approx(7.0 / 3.0));
+  CHECK(s.sd == Approx(std::sqrt(((1 - 7.0 / 3) * (1 - 7.0 / 3) + (2 - 7.0 / 3) * (2 - 7.0 / 3) + (4 - 7.0 / 3) * (4 - 7.0 / 3)) / 2.0)));
+  CHECK(sample_stats({5.0}).sd == 0.0);
+  CHECK(sample_stats({}).n == 0);
+  CHECK(sample_stats({}).mean == 0.0);
 }

@@ -71,23 +71,28 @@ void MetricsLog::add_row(int64_t step, double wall_s) {
 
 void MetricsLog::set(const char* column, const std::string& cell) { rows_.back()[column_index(column)] = cell; }
 
+void MetricsLog::set_cells(std::initializer_list<Cell> cells) {
+  for (const Cell& c : cells)
+    if (!c.only_finite || std::isfinite(c.value)) set(c.column, format(c.format, c.value));
+}
+
 void MetricsLog::set_train(const StepStats& s) {
-  set("train_loss", format("%.6g", s.loss));
-  set("train_hs_l1", format("%.6g", s.hs));
-  set("train_depth_l1", format("%.6g", s.depth));
-  set("lr_net", format("%.4g", s.lr_net));
-  set("lr_doe_m", format("%.4g", s.lr_doe));
+  set_cells({{"train_loss", "%.6g", s.loss},
+             {"train_hs_l1", "%.6g", s.hs},
+             {"train_depth_l1", "%.6g", s.depth},
+             {"lr_net", "%.4g", s.lr_net},
+             {"lr_doe_m", "%.4g", s.lr_doe}});
 }
 
 void MetricsLog::set_val(const ValStats& v) {
-  set("val_loss", format("%.6g", v.loss));
-  set("val_hs_psnr_db", format("%.4f", v.hs_psnr_db));
-  set("val_depth_rmse_m", format("%.5f", v.depth_rmse_m));
-  set("val_depth_mae_m", format("%.5f", v.depth_mae_m));
-  set("val_baseline_hs_psnr_db", format("%.4f", v.baseline_hs_psnr_db));
-  set("val_baseline_depth_rmse_m", format("%.5f", v.baseline_depth_rmse_m));
-  set("val_depth_saturated", format("%.4f", v.depth_saturated));
-  if (std::isfinite(v.baseline_wiener_hs_psnr_db)) set("val_baseline_wiener_hs_psnr_db", format("%.4f", v.baseline_wiener_hs_psnr_db));
+  set_cells({{"val_loss", "%.6g", v.loss},
+             {"val_hs_psnr_db", "%.4f", v.hs_psnr_db},
+             {"val_depth_rmse_m", "%.5f", v.depth_rmse_m},
+             {"val_depth_mae_m", "%.5f", v.depth_mae_m},
+             {"val_baseline_hs_psnr_db", "%.4f", v.baseline_hs_psnr_db},
+             {"val_baseline_depth_rmse_m", "%.5f", v.baseline_depth_rmse_m},
+             {"val_depth_saturated", "%.4f", v.depth_saturated},
+             {"val_baseline_wiener_hs_psnr_db", "%.4f", v.baseline_wiener_hs_psnr_db, true}});  // NaN without a pre-inversion
 }
 
 void MetricsLog::write() const {

@@ -6,6 +6,7 @@
 // the files rewritten atomically after each row.
 #pragma once
 #include <cstdint>
+#include <initializer_list>
 #include <string>
 #include <vector>
 
@@ -41,6 +42,15 @@ class MetricsLog {
  private:
   static std::vector<std::vector<std::string>> read_rows(const std::string& csv, int64_t start, double* wall_s);
   void set(const char* column, const std::string& cell);
+  // One cell of the last row: column, printf format of the value, the value
+  // (left empty when only_finite and the value is not finite).
+  struct Cell {
+    const char* column;
+    const char* format;
+    double value;
+    bool only_finite = false;
+  };
+  void set_cells(std::initializer_list<Cell> cells);
   std::string out_dir_;
   std::vector<std::vector<std::string>> rows_;  // cells; empty where not measured
 };

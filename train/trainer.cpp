@@ -340,15 +340,15 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   };
   const optics::PsfProvider& base = fixed_psf_ ? fixed_psf_ : shared_psf_;
   optics::PsfProvider provider = base;
-  torch::Tensor psf_out, psf_cut;  // profiling: the PSFs and their cut copy
+  std::vector<std::pair<torch::Tensor, torch::Tensor>> psf_cuts;  // profiling: each PSF stack and its cut copy
   double psf_seconds = 0;
   if (prof)
     provider = [&](const torch::Tensor& hh, const std::vector<int64_t>& layers, const std::vector<int64_t>& bands) {
       const auto t = Clock::now();
-      psf_out = base ? base(hh, layers, bands) : psf_->compute(hh, layers, {}, bands).psf;
+      const torch::Tensor out = base ? base(hh, layers, bands) : psf_->compute(hh, layers, {}, bands).psf;
       psf_seconds += std::chrono::duration<double>(Clock::now() - t).count();
-      psf_cut = psf_out.requires_grad() ? psf_out.detach().requires_grad_() : psf_out;
-      return psf_cut;
+      psf_cuts.emplace_back(out, out.requires_grad() ? out.detach().requires_grad_() : out);
+      return psf_cuts.back().second;
     };
   const auto gens = image_generators(mix(cfg_.seed ^ 0xA5A5A5A5ull, uint64_t(step)), batch.first_index, batch.radiance.size(0));
   const torch::Tensor design = doe_.height();
@@ -359,12 +359,13 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   // the camera images through the perturbed surface but deconvolves with the
   // design's PSFs, as a fabricated camera that does not know its errors does
   // (and as hsd_fabricate --tolerance evaluates it): those are a second call
-  // (profiling times it with the sensor forward).
+  // of the provider.
   const bool pre = net_->options().preinverse_layers > 0;
   torch::Tensor rgb_psf;
   if (pre) {
-    const torch::Tensor all = provider ? provider(h, all_layers(), all_bands()) : psf_->compute(h).psf;
-    const torch::Tensor known = h.is_same(design) ? all : psf_->compute(design).psf;
+    auto every_psf = [&](const torch::Tensor& hh) { return provider ? provider(hh, all_layers(), all_bands()) : psf_->compute(hh).psf; };
+    const torch::Tensor all = every_psf(h);
+    const torch::Tensor known = h.is_same(design) ? all : every_psf(design);
     rgb_psf = model::camera_rgb_psfs(known, sensor_.omega);
     provider = optics::fixed_psf_provider(all);
   }
@@ -400,7 +401,10 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   if (prof && window.requires_grad() && window.grad().defined()) {
     img.image.backward(window.grad());
     lap(&StepProfile::sensor_backward);
-    if (psf_out.defined() && psf_cut.requires_grad() && psf_cut.grad().defined()) psf_out.backward(psf_cut.grad());
+    std::vector<torch::Tensor> outs, grads;  // one backward call: the stacks share the DOE's graph
+    for (const auto& [out, cut] : psf_cuts)
+      if (cut.requires_grad() && cut.grad().defined()) outs.push_back(out), grads.push_back(cut.grad());
+    if (!outs.empty()) torch::autograd::backward(outs, grads);
     lap(&StepProfile::psf_backward);
   }
   if (group_) group_->average_gradients_(trained_parameters(), "the gradients of step " + std::to_string(step));
