@@ -163,9 +163,9 @@ int calibrate(const AppArgs& args, const Config& cfg) {
   check_matches(caps, cfg, json);
   const auto& K = cfg.calibration;
   std::optional<std::pair<double, double>> axis;
-  if (K.registration == "axis" && !caps.axis_px)
+  if (K.registration == Registration::axis && !caps.axis_px)
     input_error(json, "calibration.registration = \"axis\" needs the key axis_px (the optical axis in the frames)");
-  if (K.registration != "centroid" && caps.axis_px) axis = caps.axis_px;
+  if (K.registration != Registration::centroid && caps.axis_px) axis = caps.axis_px;
   const auto material = optics::Material::load(cfg.optics.material);
   const optics::Doe doe = optics::make_doe(cfg.optics, material, cfg.seed, torch::kCPU);  // reads DOE files: may fail
   const int64_t P = cfg.optics.psf_size, L = int64_t(caps.wavelengths_nm.size()), Z = int64_t(caps.depths_m.size());
@@ -178,9 +178,9 @@ int calibrate(const AppArgs& args, const Config& cfg) {
     const std::string ref = args.option("--reference", "");
     reference = optics::psf_for_config(optics::read_psf_file(ref), cfg.optics, ref, "--reference", torch::kCPU);
   }
-  if (K.background == "dark" && caps.dark.empty())
+  if (K.background == CaptureBackground::dark && caps.dark.empty())
     input_error(json, "calibration.background = \"dark\" needs the key dark (frames taken with the source off)");
-  const bool ring_background = K.background == "ring" || (K.background == "auto" && caps.dark.empty());
+  const bool ring_background = K.background == CaptureBackground::ring || (K.background == CaptureBackground::automatic && caps.dark.empty());
   setup_threads(cfg.threads, /*print=*/false);
   torch::Tensor psf = torch::zeros({L, Z, P, P}, torch::kFloat64);
   torch::Tensor bg = torch::zeros({L, Z}, torch::kFloat64), sigma = torch::zeros({L, Z}, torch::kFloat64);

@@ -365,7 +365,7 @@ Json sweep_one(const optics::ToleranceSweep& sw, const ToleranceBench& b, const 
     plots.push_back(f);
   };
   plot("l1", "PSF change (rel. L1, mean)", l1_mean);
-  plot("crlb", "CRLB (" + cfg.fisher.aggregate + ")", cr);
+  plot("crlb", "CRLB (" + choice_name(cfg.fisher.aggregate) + ")", cr);
   if (net_on) plot("psnr", "HS PSNR [dB]", psnr), plot("rmse", "depth RMSE [m]", rmse);
   return r;
 }
@@ -436,9 +436,9 @@ Json tolerance(const AppArgs& args, const Config& cfg, const optics::Material& m
   j["levels"] = K;
   j["reference"] = {{"crlb_aggregate", b.ref_crlb}, {"hs_psnr_db", b.ref_net.first}, {"depth_rmse_m", b.ref_net.second}};
   j["design"] = {{"hs_psnr_db", design_net.first}, {"depth_rmse_m", design_net.second}};
-  j["crlb_aggregate_name"] = cfg.fisher.aggregate;
+  j["crlb_aggregate_name"] = choice_name(cfg.fisher.aggregate);
   md += "\n# Tolerance\n\nEach error alone, against the " + std::to_string(K) + "-level design without error (CRLB " +
-        format_g(b.ref_crlb, 3) + " layers/bands, " + cfg.fisher.aggregate + ")";
+        format_g(b.ref_crlb, 3) + " layers/bands, " + choice_name(cfg.fisher.aggregate) + ")";
   if (b.with_network())
     md += "; the network through the design's own PSFs: HS PSNR " + format_g(design_net.first) + " dB, depth RMSE " +
           format_g(design_net.second, 3) + " m; through the " + std::to_string(K) + "-level map: " + format_g(b.ref_net.first) +

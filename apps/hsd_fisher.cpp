@@ -48,6 +48,50 @@ Json report_json(const optics::CrlbReport& r) {
                                                          r.crlb_wavelength_nm.data_ptr<double>() + r.crlb_wavelength_nm.numel())}};
 }
 
+// What crlb.json's "aggregate" means for this config (its "aggregation" text).
+std::string aggregation_doc(const FisherConfig& F, const std::string& nuis, bool scene_model) {
+  return scene_model ?
+      "per depth t = crlb_inv_depth / inv_depth_spacing, the bound of 1/z in units of one depth layer for a " +
+      std::to_string(F.scene_patch_px) + "^2-px patch of a 1/f^2 Gaussian texture seen through the camera's channels "
+      "with white noise " + c10::str(F.scene_noise_variance) + " of its variance (optics/scene_fisher.h); aggregate = the " +
+      choice_name(F.aggregate) + (F.aggregate == CrlbAggregate::capped_mean ? " (mean of min(t, " + c10::str(F.aggregate_cap) + "))" : std::string()) +
+      " of t over the depths; " + (nuis.find('N') == std::string::npos ? std::string("the texture's contrast known")
+                                                                        : std::string("the texture's contrast unknown")) :
+      "per (wavelength, depth) grid point t = sqrt(((crlb_inv_depth / inv_depth_spacing)^2 + (crlb_wavelength / "
+      "band_width)^2) / 2), the bound in units of one depth layer and one band; aggregate = the " + choice_name(F.aggregate) +
+      (F.aggregate == CrlbAggregate::capped_mean ? " (mean of min(t, " + c10::str(F.aggregate_cap) + "))" : std::string()) +
+      " of t over the grid; the bound of (1/z, wavelength) with " + (nuis.empty() ? std::string("nothing else") : nuis) +
+      " unknown (Schur complement)";
+}
+
+using DesignReports = std::vector<std::tuple<std::string, const optics::CrlbReport*, const optics::CrlbReport*>>;
+
+// crlb.md and the table on stdout: each design with the nuisance parameters
+// unknown (the configured bound) and known.
+void write_crlb_tables(const std::string& md_path, const std::string& agg_doc, const std::string& nuis, const DesignReports& designs) {
+  char line[320];
+  std::string md = "# CRLB of the DOE designs\n\n" + std::string("Aggregate: ") + agg_doc + ".\n\n" +
+                   "| DOE | unknown besides (1/z, λ) | aggregate | capped mean | median | mean | mean CRLB 1/z [1/m] | "
+                   "mean CRLB wavelength [nm] | max condition number |\n|---|---|---|---|---|---|---|---|---|\n";
+  std::string table =
+      "DOE        unknown     aggregate  capped mean   median       mean   CRLB 1/z [1/m]   CRLB lambda [nm]   max condition\n";
+  for (const auto& [name, r, k] : designs) {
+    for (const optics::CrlbReport* x : {r, k}) {
+      const std::string unk = x->nuisance.empty() ? std::string("-") : nuis;
+      std::snprintf(line, sizeof line, "| %s | %s | %.4g | %.4g | %.4g | %.4g | %.4g | %.4g | %.3g |\n", name.c_str(), unk.c_str(),
+                    x->aggregate.item<double>(), x->aggregate_capped, x->aggregate_median, x->aggregate_mean,
+                    x->crlb_inv_depth.mean().item<double>(), x->crlb_wavelength_nm.mean().item<double>(), x->max_condition);
+      md += line;
+      std::snprintf(line, sizeof line, "%-10s %-10s %10.4g %12.4g %8.4g %10.4g %16.4g %18.4g %15.3g\n", name.c_str(), unk.c_str(),
+                    x->aggregate.item<double>(), x->aggregate_capped, x->aggregate_median, x->aggregate_mean,
+                    x->crlb_inv_depth.mean().item<double>(), x->crlb_wavelength_nm.mean().item<double>(), x->max_condition);
+      table += line;
+    }
+  }
+  write_text_file(md_path, md);
+  std::printf("%s", table.c_str());
+}
+
 int run(const AppArgs& args) {
   const Config cfg = load_config(args.config_path, args.overrides);
   const auto& F = cfg.fisher;
@@ -67,7 +111,7 @@ int run(const AppArgs& args) {
         optics::camera_response(cfg.sensor.camera, wl_m, cfg.optics.band_width_m()).to(torch::kFloat64);
   }
   scene.noise_variance = F.scene_noise_variance, scene.patch_px = F.scene_patch_px;
-  const bool scene_model = F.model == "scene";
+  const bool scene_model = F.model == FisherModel::scene;
   // The configured bound (the design's objective) and the other one, for comparison.
   auto bound = [&](bool scene_bound, const torch::Tensor& h, const optics::FisherSettings& st) {
     return scene_bound ? optics::scene_crlb_report(g, material, h, st, scene) : optics::crlb_report(g, material, h, st);
@@ -99,7 +143,7 @@ int run(const AppArgs& args) {
   const double lam0 = design.doe.design_wavelength_m, eta0 = material.index(lam0);
   const double z0 = design.doe.design_depth_m > 0 ? design.doe.design_depth_m : optics::middle_depth_m(design.depths_m);
   auto start_on = [&](int64_t n, double pitch) {
-    return F.start == "fresnel"
+    return F.start == FisherStart::fresnel
                ? optics::fresnel_lens_height(n, pitch, lam0, eta0, z0, design.sensor_distance_m)
                : torch::zeros({n, n}, torch::kFloat64);
   };
@@ -124,24 +168,13 @@ int run(const AppArgs& args) {
   optics::save_height_file(args.out_dir + "/fisher_height.pt", h_full, cfg.optics.doe_pitch_m);
   std::string nuis;
   for (const auto& n : s.nuisance) nuis += (nuis.empty() ? "" : ", ") + n;
-  const std::string agg_doc = scene_model ?
-      "per depth t = crlb_inv_depth / inv_depth_spacing, the bound of 1/z in units of one depth layer for a " +
-      std::to_string(F.scene_patch_px) + "^2-px patch of a 1/f^2 Gaussian texture seen through the camera's channels "
-      "with white noise " + c10::str(F.scene_noise_variance) + " of its variance (optics/scene_fisher.h); aggregate = the " +
-      F.aggregate + (F.aggregate == "capped_mean" ? " (mean of min(t, " + c10::str(F.aggregate_cap) + "))" : std::string()) +
-      " of t over the depths; " + (nuis.find('N') == std::string::npos ? std::string("the texture's contrast known")
-                                                                        : std::string("the texture's contrast unknown")) :
-      "per (wavelength, depth) grid point t = sqrt(((crlb_inv_depth / inv_depth_spacing)^2 + (crlb_wavelength / "
-      "band_width)^2) / 2), the bound in units of one depth layer and one band; aggregate = the " + F.aggregate +
-      (F.aggregate == "capped_mean" ? " (mean of min(t, " + c10::str(F.aggregate_cap) + "))" : std::string()) +
-      " of t over the grid; the bound of (1/z, wavelength) with " + (nuis.empty() ? std::string("nothing else") : nuis) +
-      " unknown (Schur complement)";
+  const std::string agg_doc = aggregation_doc(F, nuis, scene_model);
   Json j{{"units", {{"crlb_inv_depth", "1/m"}, {"crlb_wavelength", "nm"}, {"aggregate", "dimensionless"}}},
          {"aggregation", agg_doc},
          {"settings", {{"photons", F.photons}, {"background_per_pixel", F.background}, {"wavelengths_nm", s.wavelengths_nm},
                        {"depths_m", s.depths_m}, {"inv_depth_spacing_per_m", s.inv_depth_spacing},
                        {"band_width_nm", s.band_width_nm}, {"window_px", F.window_px}, {"design_samples", g.doe_samples},
-                       {"basis", F.basis}, {"start", F.start}, {"steps", F.steps}, {"aggregate", F.aggregate},
+                       {"basis", choice_name(F.basis)}, {"start", choice_name(F.start)}, {"steps", F.steps}, {"aggregate", choice_name(F.aggregate)},
                        {"aggregate_cap", F.aggregate_cap}}},
          {"nuisance", s.nuisance},
          {"fresnel", report_json(r_fresnel)},
@@ -151,7 +184,7 @@ int run(const AppArgs& args) {
   j["spiral"]["without_nuisance"] = report_json(k_spiral);
   j["fisher"]["without_nuisance"] = report_json(k_fisher);
   j["fisher"]["curve"] = d.curve;
-  j["model"] = F.model;
+  j["model"] = choice_name(F.model);
   // The other bound of the same three designs, so a point design and a scene design can be compared both ways.
   {
     const bool other = !scene_model;
@@ -166,28 +199,8 @@ int run(const AppArgs& args) {
     log::info(line);
   }
   write_text_file(args.out_dir + "/crlb.json", j.dump(2) + "\n");
-  char line[320];
-  std::string md = "# CRLB of the DOE designs\n\n" + std::string("Aggregate: ") + agg_doc + ".\n\n" +
-                   "| DOE | unknown besides (1/z, λ) | aggregate | capped mean | median | mean | mean CRLB 1/z [1/m] | "
-                   "mean CRLB wavelength [nm] | max condition number |\n|---|---|---|---|---|---|---|---|---|\n";
-  std::string table =
-      "DOE        unknown     aggregate  capped mean   median       mean   CRLB 1/z [1/m]   CRLB lambda [nm]   max condition\n";
-  for (const auto& [name, r, k] : std::vector<std::tuple<std::string, const optics::CrlbReport*, const optics::CrlbReport*>>{
-           {"fresnel", &r_fresnel, &k_fresnel}, {"spiral", &r_spiral, &k_spiral}, {"fisher", &r_fisher, &k_fisher}}) {
-    for (const optics::CrlbReport* x : {r, k}) {
-      const std::string unk = x->nuisance.empty() ? std::string("-") : nuis;
-      std::snprintf(line, sizeof line, "| %s | %s | %.4g | %.4g | %.4g | %.4g | %.4g | %.4g | %.3g |\n", name.c_str(), unk.c_str(),
-                    x->aggregate.item<double>(), x->aggregate_capped, x->aggregate_median, x->aggregate_mean,
-                    x->crlb_inv_depth.mean().item<double>(), x->crlb_wavelength_nm.mean().item<double>(), x->max_condition);
-      md += line;
-      std::snprintf(line, sizeof line, "%-10s %-10s %10.4g %12.4g %8.4g %10.4g %16.4g %18.4g %15.3g\n", name.c_str(), unk.c_str(),
-                    x->aggregate.item<double>(), x->aggregate_capped, x->aggregate_median, x->aggregate_mean,
-                    x->crlb_inv_depth.mean().item<double>(), x->crlb_wavelength_nm.mean().item<double>(), x->max_condition);
-      table += line;
-    }
-  }
-  write_text_file(args.out_dir + "/crlb.md", md);
-  std::printf("%s", table.c_str());
+  write_crlb_tables(args.out_dir + "/crlb.md", agg_doc, nuis,
+                    {{"fresnel", &r_fresnel, &k_fresnel}, {"spiral", &r_spiral, &k_spiral}, {"fisher", &r_fisher, &k_fisher}});
   std::vector<double> xs;
   for (size_t k = 0; k < d.curve.size(); ++k) xs.push_back(double(k));
   viz::write_line_plot(args.out_dir + "/fisher_curve.png", "aggregated CRLB during the Fisher design", "step",

@@ -9,6 +9,7 @@
 #include "common/app.h"
 #include "common/atomic_file.h"
 #include "common/log.h"
+#include "common/text_format.h"
 #include "common/tensor_io.h"
 #include "optics/depth_distinctness.h"
 #include "optics/doe.h"
@@ -167,10 +168,11 @@ int run(const AppArgs& args) {
       cue_lines(rgb, "depth cue per camera channel (the band PSFs weighted by the camera response)",
                 [&](size_t c) { return std::string(channel[c]); });
       // Through a scene, not a point (optics/depth_distinctness.h): what the network can see.
-      const auto sc = optics::scene_depth_cue(rgb);
-      std::string line =
-          "depth cue through a scene per camera channel (a 1/f^2 Gaussian texture, noise 1e-3 of its variance: "
-          "symmetric KL divergence per pixel between two depths' images, nats; smallest pair, mean over pairs)";
+      const auto sc = optics::scene_depth_cue(rgb, cfg.fisher.scene_noise_variance);
+      std::string line = "depth cue through a scene per camera channel (a 1/f^2 Gaussian texture, noise " +
+                         format_g(cfg.fisher.scene_noise_variance, 3) +
+                         " of its variance (fisher.scene_noise_variance): symmetric KL divergence per pixel between "
+                         "two depths' images, nats; smallest pair, mean over pairs)";
       char buf[160];
       double mean = 0;
       for (size_t c = 0; c < sc.min_per_slice.size(); ++c) {

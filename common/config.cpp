@@ -21,6 +21,23 @@ void require_positive(const JsonReader& r, const std::string& key, double v) {
   if (!(v > 0.0)) r.fail(key, "must be > 0, got " + num(v));
 }
 
+// Range-checked reads: the value at `key` (v when absent), which must lie
+// between lo and hi, each end closed ('[', ']') or open ('(', ')');
+// InputError naming the key otherwise, "must be in [lo, hi]" and the note
+// (a unit, what an end value means).
+double number_in(const JsonReader& r, const std::string& key, double v, char open, double lo, double hi, char close,
+                 const std::string& note = "") {
+  v = r.get_number(key, v);
+  const bool ok = (open == '[' ? v >= lo : v > lo) && (close == ']' ? v <= hi : v < hi);
+  if (!ok) r.fail(key, "must be in " + std::string(1, open) + num(lo) + ", " + num(hi) + std::string(1, close) + note);
+  return v;
+}
+int64_t int_in(const JsonReader& r, const std::string& key, int64_t v, int64_t lo, int64_t hi, const std::string& note = "") {
+  v = r.get_int(key, v);
+  if (v < lo || v > hi) r.fail(key, "must be in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]" + note);
+  return v;
+}
+
 DoeConfig parse_doe(const JsonReader& r) {
   DoeConfig d;
   d.init = r.get_string("init", d.init);
@@ -40,8 +57,7 @@ DoeConfig parse_doe(const JsonReader& r) {
   d.quantization_levels = r.get_int("quantization_levels", d.quantization_levels);
   if (d.quantization_levels < 0 || d.quantization_levels == 1 || d.quantization_levels > 65536)
     r.fail("quantization_levels", "must be 0 (continuous) or in [2, 65536], got " + std::to_string(d.quantization_levels));
-  d.spiral_wings = r.get_int("spiral_wings", d.spiral_wings);
-  if (d.spiral_wings < 1 || d.spiral_wings > 64) r.fail("spiral_wings", "must be in [1, 64]");
+  d.spiral_wings = int_in(r, "spiral_wings", d.spiral_wings, 1, 64);
   d.fisher_path = r.get_string("fisher_path", d.fisher_path);
   return d;
 }
@@ -72,9 +88,7 @@ OpticsConfig parse_optics(const JsonReader& r) {
   require_positive(r, "pixel_pitch_m", o.pixel_pitch_m);
   o.aperture_diameter_m = r.get_number("aperture_diameter_m");
   require_positive(r, "aperture_diameter_m", o.aperture_diameter_m);
-  o.aperture_shape = r.get_string("aperture_shape", o.aperture_shape);
-  if (o.aperture_shape != "circle" && o.aperture_shape != "square")
-    r.fail("aperture_shape", "expected \"circle\" or \"square\", got \"" + o.aperture_shape + "\"");
+  o.aperture_shape = read_choice(r, "aperture_shape", o.aperture_shape);
   o.psf_size = r.get_int("psf_size");
   if (o.psf_size < 1 || o.psf_size % 2 == 0 || o.psf_size > 4095)
     r.fail("psf_size", "must be an odd integer in [1, 4095], got " + std::to_string(o.psf_size));
@@ -94,22 +108,13 @@ OpticsConfig parse_optics(const JsonReader& r) {
   o.pixel_quadrature_tol = r.get_number("pixel_quadrature_tol", o.pixel_quadrature_tol);
   if (!(o.pixel_quadrature_tol > 0.0 && o.pixel_quadrature_tol < 1.0))
     r.fail("pixel_quadrature_tol", "must be in (0, 1)");
-  o.precision = r.get_string("precision", o.precision);
-  if (o.precision != "float32" && o.precision != "float64")
-    r.fail("precision", "expected \"float32\" or \"float64\", got \"" + o.precision + "\"");
-  o.psf_backward = r.get_string("psf_backward", o.psf_backward);
-  if (o.psf_backward != "store" && o.psf_backward != "recompute")
-    r.fail("psf_backward", "expected \"store\" or \"recompute\", got \"" + o.psf_backward + "\"");
+  o.precision = read_choice(r, "precision", o.precision);
+  o.psf_backward = read_choice(r, "psf_backward", o.psf_backward);
   o.mft_rank_tol = r.get_number("mft_rank_tol", o.mft_rank_tol);
   if (o.mft_rank_tol < 0.0 || o.mft_rank_tol > 1e-2) r.fail("mft_rank_tol", "must be in [0, 1e-2] (0 = exact)");
-  o.pupil_oversampling = r.get_int("pupil_oversampling", o.pupil_oversampling);
-  if (o.pupil_oversampling < 1 || o.pupil_oversampling > 8) r.fail("pupil_oversampling", "must be in [1, 8]");
-  o.pupil_cell_integration = r.get_string("pupil_cell_integration", o.pupil_cell_integration);
-  if (o.pupil_cell_integration != "sinc_cross" && o.pupil_cell_integration != "sinc" && o.pupil_cell_integration != "midpoint")
-    r.fail("pupil_cell_integration",
-           "expected \"sinc_cross\", \"sinc\" or \"midpoint\", got \"" + o.pupil_cell_integration + "\"");
-  o.spectral_samples = r.get_int("spectral_samples", o.spectral_samples);
-  if (o.spectral_samples < 1 || o.spectral_samples > 9) r.fail("spectral_samples", "must be in [1, 9]");
+  o.pupil_oversampling = int_in(r, "pupil_oversampling", o.pupil_oversampling, 1, 8);
+  o.pupil_cell_integration = read_choice(r, "pupil_cell_integration", o.pupil_cell_integration);
+  o.spectral_samples = int_in(r, "spectral_samples", o.spectral_samples, 1, 9);
   o.psf_source = r.get_string("psf_source", o.psf_source);
   if (o.psf_source != "simulator" && o.psf_source != "all_in_focus" && o.psf_source.rfind("file:", 0) != 0)
     r.fail("psf_source", "expected \"simulator\", \"all_in_focus\" or \"file:PATH\", got \"" + o.psf_source + "\"");
@@ -134,14 +139,11 @@ DataConfig parse_data(const JsonReader& d) {
   c.intensity_max = d.get_number("intensity_max", c.intensity_max);
   if (!(c.intensity_min > 0.0)) d.fail("intensity_min", "must be > 0");
   if (c.intensity_max < c.intensity_min) d.fail("intensity_max", "must be >= data.intensity_min");
-  c.patch_size_px = d.get_int("patch_size_px", c.patch_size_px);
-  if (c.patch_size_px < 8 || c.patch_size_px > 8192) d.fail("patch_size_px", "must be in [8, 8192]");
-  c.render_margin_px = d.get_int("render_margin_px", c.render_margin_px);
-  if (c.render_margin_px < -1 || c.render_margin_px > 4096) d.fail("render_margin_px", "must be in [-1, 4096] (-1 = optics.psf_size / 2)");
+  c.patch_size_px = int_in(d, "patch_size_px", c.patch_size_px, 8, 8192);
+  c.render_margin_px = int_in(d, "render_margin_px", c.render_margin_px, -1, 4096, " (-1 = optics.psf_size / 2)");
   c.patches = d.get_int("patches", c.patches);
   if (c.patches < 1) d.fail("patches", "must be >= 1");
-  c.loader_threads = d.get_int("loader_threads", c.loader_threads);
-  if (c.loader_threads < 0 || c.loader_threads > 256) d.fail("loader_threads", "must be in [0, 256] (0 = all cores)");
+  c.loader_threads = int_in(d, "loader_threads", c.loader_threads, 0, 256, " (0 = all cores)");
   if (auto gr = d.optional_child("generator")) {
     auto& g = c.generator;
     g.train_scenes = gr->get_int("train_scenes", g.train_scenes);
@@ -256,8 +258,7 @@ void check_utf8(const Json& j, const std::string& path) {
 
 namespace {
 void parse_fabrication_error(const JsonReader& e, FabricationErrorConfig& E) {
-  E.height_scale_error = e.get_number("height_scale_error", E.height_scale_error);
-  if (!(E.height_scale_error > -0.5 && E.height_scale_error < 0.5)) e.fail("height_scale_error", "must be in (-0.5, 0.5)");
+  E.height_scale_error = number_in(e, "height_scale_error", E.height_scale_error, '(', -0.5, 0.5, ')');
   for (auto [k, v] : {std::pair<const char*, double*>{"roughness_rms_m", &E.roughness_rms_m},
                       {"roughness_correlation_m", &E.roughness_correlation_m}, {"edge_blur_m", &E.edge_blur_m},
                       {"misalignment_m", &E.misalignment_m}, {"decentre_m", &E.decentre_m}}) {
@@ -265,12 +266,211 @@ void parse_fabrication_error(const JsonReader& e, FabricationErrorConfig& E) {
     if (!(*v >= 0.0 && *v < 1e-3)) e.fail(k, "must be in [0, 1e-3) metres");
   }
 }
+SensorConfig parse_sensor(const JsonReader& s) {
+  SensorConfig S;
+  S.camera = s.get_string("camera", S.camera);
+  S.noise_std = s.get_number("noise_std", S.noise_std);
+  if (S.noise_std < 0.0) s.fail("noise_std", "must be >= 0 (0 disables noise)");
+  S.noise_std_min = s.get_number_or_null("noise_std_min", S.noise_std_min);
+  if (S.noise_std_min > S.noise_std) s.fail("noise_std_min", "must be <= sensor.noise_std");
+  S.photons_at_saturation = s.get_number("photons_at_saturation", S.photons_at_saturation);
+  if (S.photons_at_saturation < 0.0) s.fail("photons_at_saturation", "must be >= 0 (0 disables shot noise)");
+  S.saturation = s.get_number("saturation", S.saturation);
+  if (S.saturation < 0.0) s.fail("saturation", "must be >= 0 (0 disables clipping)");
+  S.bit_depth = int_in(s, "bit_depth", S.bit_depth, 0, 24, " (0 = no quantization)");
+  if (S.bit_depth > 0 && S.saturation == 0.0) s.fail("bit_depth", "quantization needs sensor.saturation > 0");
+  S.mask_sigma_px = s.get_number("mask_sigma_px", S.mask_sigma_px);
+  if (S.mask_sigma_px < 0.0 || S.mask_sigma_px > 100.0) s.fail("mask_sigma_px", "must be in [0, 100] pixels");
+  S.compositing = read_choice(s, "compositing", S.compositing);
+  S.illuminant = s.get_string("illuminant", S.illuminant);
+  return S;
+}
+
+FisherConfig parse_fisher(const JsonReader& f) {
+  FisherConfig F;
+  F.photons = f.get_number("photons", F.photons);
+  if (!(F.photons > 0.0)) f.fail("photons", "must be > 0");
+  F.background = f.get_number("background", F.background);
+  if (!(F.background >= 0.0)) f.fail("background", "must be >= 0");
+  F.window_px = f.get_int("window_px", F.window_px);
+  if (F.window_px < 3 || F.window_px > 255 || F.window_px % 2 == 0) f.fail("window_px", "must be odd, in [3, 255]");
+  F.pixel_nodes = int_in(f, "pixel_nodes", F.pixel_nodes, 1, 8);
+  F.design_samples = f.get_int("design_samples", F.design_samples);
+  if (F.design_samples != 0 && (F.design_samples < 16 || F.design_samples > 4096))
+    f.fail("design_samples", "must be 0 (the DOE grid) or in [16, 4096]");
+  F.wavelength_stride = f.get_int("wavelength_stride", F.wavelength_stride);
+  F.depth_stride = f.get_int("depth_stride", F.depth_stride);
+  if (F.wavelength_stride < 1) f.fail("wavelength_stride", "must be >= 1");
+  if (F.depth_stride < 1) f.fail("depth_stride", "must be >= 1");
+  F.basis = read_choice(f, "basis", F.basis);
+  F.zernike_modes = int_in(f, "zernike_modes", F.zernike_modes, 1, 200);
+  F.start = read_choice(f, "start", F.start);
+  F.steps = int_in(f, "steps", F.steps, 0, 100000);
+  F.lr = number_in(f, "lr", F.lr, '(', 0.0, 10.0, ')', " micrometres");
+  if (f.has("nuisance")) F.nuisance = f.get_string_array("nuisance");
+  for (size_t i = 0; i < F.nuisance.size(); ++i) {
+    const std::string& n = F.nuisance[i];
+    if (n != "x" && n != "y" && n != "N") f.fail("nuisance", "\"" + n + "\" is not a parameter (x, y, N)");
+    for (size_t j = 0; j < i; ++j)
+      if (F.nuisance[j] == n) f.fail("nuisance", "lists \"" + n + "\" twice");
+  }
+  F.aggregate = read_choice(f, "aggregate", F.aggregate);
+  F.aggregate_cap = number_in(f, "aggregate_cap", F.aggregate_cap, '(', 0.0, 1e6, ']');
+  F.model = read_choice(f, "model", F.model);
+  F.scene_noise_variance = f.get_number("scene_noise_variance", F.scene_noise_variance);
+  if (!(F.scene_noise_variance > 0.0 && F.scene_noise_variance <= 1.0))
+    f.fail("scene_noise_variance", "must be in (0, 1] (relative to the texture's variance)");
+  F.scene_patch_px = int_in(f, "scene_patch_px", F.scene_patch_px, 8, 4096);
+  return F;
+}
+
+ModelConfig parse_model(const JsonReader& m) {
+  ModelConfig M;
+  M.base_width = int_in(m, "base_width", M.base_width, 1, 512);
+  M.levels = int_in(m, "levels", M.levels, 1, 7);
+  M.norm = read_choice(m, "norm", M.norm);
+  M.depth_margin = number_in(m, "depth_margin", M.depth_margin, '[', 0.0, 0.5, ']');
+  M.head_init = read_choice(m, "head_init", M.head_init);
+  M.preinverse = read_choice(m, "preinverse", M.preinverse);
+  M.preinverse_reg = number_in(m, "preinverse_reg", M.preinverse_reg, '[', 1e-8, 1e3, ']');
+  M.residual = read_choice(m, "residual", M.residual);
+  if (M.residual == ResidualBase::preinverse && M.preinverse != Preinverse::wiener)
+    m.fail("residual", "\"preinverse\" needs model.preinverse = \"wiener\" (got \"" + choice_name(M.preinverse) + "\")");
+  return M;
+}
+
+TrainConfig parse_train(const JsonReader& t) {
+  TrainConfig T;
+  T.steps = int_in(t, "steps", T.steps, 1, 100000000);
+  T.batch_size = int_in(t, "batch_size", T.batch_size, 1, 4096);
+  T.lr_net = number_in(t, "lr_net", T.lr_net, '[', 0.0, 1.0, ')');
+  T.lr_doe_m = number_in(t, "lr_doe_m", T.lr_doe_m, '[', 0.0, 1e-5, ')', " metres");
+  T.warmup_steps = t.get_int("warmup_steps", T.warmup_steps);
+  if (T.warmup_steps < 0) t.fail("warmup_steps", "must be >= 0");
+  T.decay = read_choice(t, "decay", T.decay);
+  T.min_lr_ratio = number_in(t, "min_lr_ratio", T.min_lr_ratio, '[', 0.0, 1.0, ']');
+  T.precision = read_choice(t, "precision", T.precision);
+  T.clip_grad_norm = t.get_number("clip_grad_norm", T.clip_grad_norm);
+  if (T.clip_grad_norm < 0.0) t.fail("clip_grad_norm", "must be >= 0 (0 = off)");
+  T.freeze_doe = t.get_bool("freeze_doe", T.freeze_doe);
+  T.init_checkpoint = t.get_string("init_checkpoint", T.init_checkpoint);
+  if (auto n = t.optional_child("fabrication_noise")) {
+    parse_fabrication_error(*n, T.fabrication_noise);
+    if (T.fabrication_noise.misalignment_m != 0.0)
+      n->fail("misalignment_m", "must be 0 in training (a mask misalignment needs the level masks; sweep it with hsd_fabricate --tolerance)");
+    if (T.fabrication_noise.height_scale_error < 0.0) n->fail("height_scale_error", "is the standard deviation of the drawn error here: must be >= 0");
+  }
+  T.loss_alpha = t.get_number("loss_alpha", T.loss_alpha);
+  T.loss_beta = t.get_number("loss_beta", T.loss_beta);
+  T.loss_gamma = t.get_number("loss_gamma", T.loss_gamma);
+  T.depth_loss = read_choice(t, "depth_loss", T.depth_loss);
+  for (const auto& [k, v] : {std::pair<const char*, double>{"loss_alpha", T.loss_alpha},
+                             {"loss_beta", T.loss_beta}, {"loss_gamma", T.loss_gamma}})
+    if (v < 0.0) t.fail(k, "must be >= 0");
+  T.val_every = t.get_int("val_every", T.val_every);
+  T.val_patches = t.get_int("val_patches", T.val_patches);
+  T.checkpoint_every = t.get_int("checkpoint_every", T.checkpoint_every);
+  T.log_every = t.get_int("log_every", T.log_every);
+  for (const auto& [k, v] : {std::pair<const char*, int64_t>{"val_every", T.val_every}, {"val_patches", T.val_patches},
+                             {"checkpoint_every", T.checkpoint_every}, {"log_every", T.log_every}})
+    if (v < 1) t.fail(k, "must be >= 1");
+  return T;
+}
+
+DistributedConfig parse_distributed(const JsonReader& d) {
+  DistributedConfig D;
+  D.timeout_s = number_in(d, "timeout_s", D.timeout_s, '[', 1.0, 86400.0, ']', " seconds");
+  D.bucket_mib = number_in(d, "bucket_mib", D.bucket_mib, '(', 0.0, 4096.0, ']', " MiB");
+  D.sync_batch_norm = d.get_bool("sync_batch_norm", D.sync_batch_norm);
+  D.split_psf = d.get_bool("split_psf", D.split_psf);
+  return D;
+}
+
+FabricationConfig parse_fabrication(const JsonReader& f) {
+  FabricationConfig F;
+  F.levels = f.get_int("levels", F.levels);
+  if (F.levels < 2 || F.levels > 256 || (F.levels & (F.levels - 1)) != 0)
+    f.fail("levels", "must be a power of two in [2, 256] (log2 K binary masks)");
+  F.min_feature_m = number_in(f, "min_feature_m", F.min_feature_m, '[', 0.0, 1e-3, ')', " metres");
+  F.cell_name = f.get_string("cell_name", F.cell_name);
+  if (F.cell_name.empty() || F.cell_name.size() > 32 ||
+      F.cell_name.find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_?$") != std::string::npos)
+    f.fail("cell_name", "must be 1-32 characters of A-Z, a-z, 0-9, _, ? and $ (GDSII structure names)");
+  if (auto e = f.optional_child("error")) parse_fabrication_error(*e, F.error);
+  if (auto t = f.optional_child("tolerance")) {
+    auto& T = F.tolerance;
+    auto sizes = [&](const char* key, std::vector<double>& v, double lo, double hi, const char* unit) {
+      if (!t->has(key)) return;
+      v = t->get_number_array(key);
+      if (v.empty()) t->fail(key, "must list at least one size");
+      for (size_t i = 0; i < v.size(); ++i) {
+        if (!(v[i] >= lo && v[i] < hi)) t->fail(key, std::string("sizes must be in [") + c10::str(lo) + ", " + c10::str(hi) + ") " + unit);
+        if (i > 0 && !(v[i] > v[i - 1])) t->fail(key, "sizes must increase");
+      }
+    };
+    sizes("height_scale_error", T.height_scale_error, 0.0, 0.5, "(relative)");
+    sizes("roughness_rms_m", T.roughness_rms_m, 0.0, 1e-3, "metres");
+    sizes("misalignment_m", T.misalignment_m, 0.0, 1e-3, "metres");
+    sizes("edge_blur_m", T.edge_blur_m, 0.0, 1e-3, "metres");
+    sizes("decentre_m", T.decentre_m, 0.0, 1e-2, "metres");
+    T.roughness_correlation_m = t->get_number("roughness_correlation_m", T.roughness_correlation_m);
+    if (!(T.roughness_correlation_m > 0.0 && T.roughness_correlation_m < 1e-3))
+      t->fail("roughness_correlation_m", "must be in (0, 1e-3) metres");
+    T.subsamples = t->get_int("subsamples", T.subsamples);
+    if (T.subsamples < 1 || T.subsamples > 16) t->fail("subsamples", "must be in [1, 16]");
+    T.network = t->get_bool("network", T.network);
+    T.draws = t->get_int("draws", T.draws);
+    if (T.draws < 0 || T.draws > 1000) t->fail("draws", "must be in [0, 1000] (0 = off)");
+    if (auto n = t->optional_child("draw_scales")) {
+      parse_fabrication_error(*n, T.draw_scales);
+      if (T.draw_scales.misalignment_m != 0.0) n->fail("misalignment_m", "must be 0 (drawn as train.fabrication_noise draws; sweep it alone instead)");
+      if (T.draw_scales.height_scale_error < 0.0) n->fail("height_scale_error", "is the standard deviation of the drawn error here: must be >= 0");
+    }
+  }
+  return F;
+}
+
+CalibrationConfig parse_calibration(const JsonReader& k, int64_t psf_size) {
+  CalibrationConfig K;
+  K.registration = read_choice(k, "registration", K.registration);
+  K.background = read_choice(k, "background", K.background);
+  K.hot_pixel_sigma = number_in(k, "hot_pixel_sigma", K.hot_pixel_sigma, '[', 3.0, 1e6, ']');
+  K.hot_pixel_ratio = number_in(k, "hot_pixel_ratio", K.hot_pixel_ratio, '[', 1.5, 1e6, ']');
+  K.min_snr = number_in(k, "min_snr", K.min_snr, '[', 1.0, 1e9, ']');
+  if (auto y = k.optional_child("synthetic")) {
+    auto& S = K.synthetic;
+    S.frame_px = y->get_int("frame_px", S.frame_px);
+    if (S.frame_px != 0 && (S.frame_px < psf_size || S.frame_px > 4096))
+      y->fail("frame_px", "must be 0 (automatic) or in [optics.psf_size, 4096]");
+    S.peak_counts = y->get_number("peak_counts", S.peak_counts);
+    if (!(S.peak_counts >= 10.0 && S.peak_counts <= 60000.0)) y->fail("peak_counts", "must be in [10, 60000] counts");
+    for (auto [key, v] : {std::pair<const char*, double*>{"background_counts", &S.background_counts},
+                          {"dark_counts", &S.dark_counts}, {"read_noise_counts", &S.read_noise_counts}}) {
+      *v = y->get_number(key, *v);
+      if (!(*v >= 0.0 && *v <= 10000.0)) y->fail(key, "must be in [0, 10000] counts");
+    }
+    S.hot_pixels = y->get_int("hot_pixels", S.hot_pixels);
+    if (S.hot_pixels < 0 || S.hot_pixels > 10000) y->fail("hot_pixels", "must be in [0, 10000]");
+    S.exposures = y->get_int("exposures", S.exposures);
+    if (S.exposures < 1 || S.exposures > 64) y->fail("exposures", "must be in [1, 64]");
+    S.seed = y->get_int("seed", S.seed);
+    if (S.seed < 0) y->fail("seed", "must be >= 0");
+    if (y->has("axis_offset_px")) {
+      S.axis_offset_px = y->get_number_array("axis_offset_px");
+      if (S.axis_offset_px.size() != 2 || !(std::abs(S.axis_offset_px[0]) <= 10) || !(std::abs(S.axis_offset_px[1]) <= 10))
+        y->fail("axis_offset_px", "must be [row, col], each within 10 px of the frame centre");
+    }
+  }
+  return K;
+}
+
 }  // namespace
 
-Config parse_config(const Json& resolved) {
+Config parse_config(const Json& resolved, std::vector<std::string>* unlike_defaults) {
   if (!resolved.is_object()) input_error("config", "must be a JSON object");
   check_utf8(resolved, "");
   JsonReader r(resolved);
+  if (unlike_defaults) r.record_unlike_fallback();
   Config c;
   c.resolved = resolved;
   const int64_t seed = r.get_int("seed", 0);
@@ -278,249 +478,26 @@ Config parse_config(const Json& resolved) {
   c.seed = uint64_t(seed);
   c.device = r.get_string("device", c.device);
   if (c.device != "cpu" && c.device != "cuda") r.fail("device", "expected \"cpu\" or \"cuda\", got \"" + c.device + "\"");
-  c.threads = r.get_int("threads", c.threads);
-  if (c.threads < 0 || c.threads > 1024) r.fail("threads", "must be in [0, 1024] (0 = all cores)");
+  c.threads = int_in(r, "threads", c.threads, 0, 1024, " (0 = all cores)");
   c.optics = parse_optics(r.child("optics"));
-  if (auto s = r.optional_child("sensor")) {
-    auto& S = c.sensor;
-    S.camera = s->get_string("camera", S.camera);
-    S.noise_std = s->get_number("noise_std", S.noise_std);
-    if (S.noise_std < 0.0) s->fail("noise_std", "must be >= 0 (0 disables noise)");
-    S.noise_std_min = s->get_number_or_null("noise_std_min", S.noise_std_min);
-    if (S.noise_std_min > S.noise_std) s->fail("noise_std_min", "must be <= sensor.noise_std");
-    S.photons_at_saturation = s->get_number("photons_at_saturation", S.photons_at_saturation);
-    if (S.photons_at_saturation < 0.0) s->fail("photons_at_saturation", "must be >= 0 (0 disables shot noise)");
-    S.saturation = s->get_number("saturation", S.saturation);
-    if (S.saturation < 0.0) s->fail("saturation", "must be >= 0 (0 disables clipping)");
-    S.bit_depth = s->get_int("bit_depth", S.bit_depth);
-    if (S.bit_depth < 0 || S.bit_depth > 24) s->fail("bit_depth", "must be in [0, 24] (0 = no quantization)");
-    if (S.bit_depth > 0 && S.saturation == 0.0) s->fail("bit_depth", "quantization needs sensor.saturation > 0");
-    S.mask_sigma_px = s->get_number("mask_sigma_px", S.mask_sigma_px);
-    if (S.mask_sigma_px < 0.0 || S.mask_sigma_px > 100.0) s->fail("mask_sigma_px", "must be in [0, 100] pixels");
-    S.compositing = s->get_string("compositing", S.compositing);
-    if (S.compositing != "linear" && S.compositing != "occlusion")
-      s->fail("compositing", "expected \"linear\" or \"occlusion\", got \"" + S.compositing + "\"");
-    S.illuminant = s->get_string("illuminant", S.illuminant);
-  }
-  if (auto f = r.optional_child("fisher")) {
-    auto& F = c.fisher;
-    F.photons = f->get_number("photons", F.photons);
-    if (!(F.photons > 0.0)) f->fail("photons", "must be > 0");
-    F.background = f->get_number("background", F.background);
-    if (!(F.background >= 0.0)) f->fail("background", "must be >= 0");
-    F.window_px = f->get_int("window_px", F.window_px);
-    if (F.window_px < 3 || F.window_px > 255 || F.window_px % 2 == 0) f->fail("window_px", "must be odd, in [3, 255]");
-    F.pixel_nodes = f->get_int("pixel_nodes", F.pixel_nodes);
-    if (F.pixel_nodes < 1 || F.pixel_nodes > 8) f->fail("pixel_nodes", "must be in [1, 8]");
-    F.design_samples = f->get_int("design_samples", F.design_samples);
-    if (F.design_samples != 0 && (F.design_samples < 16 || F.design_samples > 4096))
-      f->fail("design_samples", "must be 0 (the DOE grid) or in [16, 4096]");
-    F.wavelength_stride = f->get_int("wavelength_stride", F.wavelength_stride);
-    F.depth_stride = f->get_int("depth_stride", F.depth_stride);
-    if (F.wavelength_stride < 1) f->fail("wavelength_stride", "must be >= 1");
-    if (F.depth_stride < 1) f->fail("depth_stride", "must be >= 1");
-    F.basis = f->get_string("basis", F.basis);
-    if (F.basis != "zernike" && F.basis != "freeform") f->fail("basis", "expected \"zernike\" or \"freeform\", got \"" + F.basis + "\"");
-    F.zernike_modes = f->get_int("zernike_modes", F.zernike_modes);
-    if (F.zernike_modes < 1 || F.zernike_modes > 200) f->fail("zernike_modes", "must be in [1, 200]");
-    F.start = f->get_string("start", F.start);
-    if (F.start != "fresnel" && F.start != "flat") f->fail("start", "expected \"fresnel\" or \"flat\", got \"" + F.start + "\"");
-    F.steps = f->get_int("steps", F.steps);
-    if (F.steps < 0 || F.steps > 100000) f->fail("steps", "must be in [0, 100000]");
-    F.lr = f->get_number("lr", F.lr);
-    if (!(F.lr > 0.0 && F.lr < 10.0)) f->fail("lr", "must be in (0, 10) micrometres");
-    if (f->has("nuisance")) F.nuisance = f->get_string_array("nuisance");
-    for (size_t i = 0; i < F.nuisance.size(); ++i) {
-      const std::string& n = F.nuisance[i];
-      if (n != "x" && n != "y" && n != "N") f->fail("nuisance", "\"" + n + "\" is not a parameter (x, y, N)");
-      for (size_t j = 0; j < i; ++j)
-        if (F.nuisance[j] == n) f->fail("nuisance", "lists \"" + n + "\" twice");
-    }
-    F.aggregate = f->get_string("aggregate", F.aggregate);
-    if (F.aggregate != "capped_mean" && F.aggregate != "median" && F.aggregate != "mean")
-      f->fail("aggregate", "expected \"capped_mean\", \"median\" or \"mean\", got \"" + F.aggregate + "\"");
-    F.aggregate_cap = f->get_number("aggregate_cap", F.aggregate_cap);
-    if (!(F.aggregate_cap > 0.0 && F.aggregate_cap <= 1e6)) f->fail("aggregate_cap", "must be in (0, 1e6]");
-    F.model = f->get_string("model", F.model);
-    if (F.model != "point" && F.model != "scene") f->fail("model", "expected \"point\" or \"scene\", got \"" + F.model + "\"");
-    F.scene_noise_variance = f->get_number("scene_noise_variance", F.scene_noise_variance);
-    if (!(F.scene_noise_variance > 0.0 && F.scene_noise_variance <= 1.0))
-      f->fail("scene_noise_variance", "must be in (0, 1] (relative to the texture's variance)");
-    F.scene_patch_px = f->get_int("scene_patch_px", F.scene_patch_px);
-    if (F.scene_patch_px < 8 || F.scene_patch_px > 4096) f->fail("scene_patch_px", "must be in [8, 4096]");
-  }
-  if (auto m = r.optional_child("model")) {
-    auto& M = c.model;
-    M.base_width = m->get_int("base_width", M.base_width);
-    if (M.base_width < 1 || M.base_width > 512) m->fail("base_width", "must be in [1, 512]");
-    M.levels = m->get_int("levels", M.levels);
-    if (M.levels < 1 || M.levels > 7) m->fail("levels", "must be in [1, 7]");
-    M.norm = m->get_string("norm", M.norm);
-    if (M.norm != "batch" && M.norm != "group" && M.norm != "none")
-      m->fail("norm", "expected \"batch\", \"group\" or \"none\", got \"" + M.norm + "\"");
-    M.depth_margin = m->get_number("depth_margin", M.depth_margin);
-    if (!(M.depth_margin >= 0.0 && M.depth_margin <= 0.5)) m->fail("depth_margin", "must be in [0, 0.5]");
-    M.head_init = m->get_string("head_init", M.head_init);
-    if (M.head_init != "baselines" && M.head_init != "random")
-      m->fail("head_init", "expected \"baselines\" or \"random\", got \"" + M.head_init + "\"");
-    M.preinverse = m->get_string("preinverse", M.preinverse);
-    if (M.preinverse != "none" && M.preinverse != "wiener")
-      m->fail("preinverse", "expected \"none\" or \"wiener\", got \"" + M.preinverse + "\"");
-    M.preinverse_reg = m->get_number("preinverse_reg", M.preinverse_reg);
-    if (!(M.preinverse_reg >= 1e-8 && M.preinverse_reg <= 1e3)) m->fail("preinverse_reg", "must be in [1e-8, 1e3]");
-    M.residual = m->get_string("residual", M.residual);
-    if (M.residual != "image" && M.residual != "preinverse")
-      m->fail("residual", "expected \"image\" or \"preinverse\", got \"" + M.residual + "\"");
-    if (M.residual == "preinverse" && M.preinverse != "wiener")
-      m->fail("residual", "\"preinverse\" needs model.preinverse = \"wiener\" (got \"" + M.preinverse + "\")");
-  }
-  if (auto t = r.optional_child("train")) {
-    auto& T = c.train;
-    T.steps = t->get_int("steps", T.steps);
-    if (T.steps < 1 || T.steps > 100000000) t->fail("steps", "must be in [1, 1e8]");
-    T.batch_size = t->get_int("batch_size", T.batch_size);
-    if (T.batch_size < 1 || T.batch_size > 4096) t->fail("batch_size", "must be in [1, 4096]");
-    T.lr_net = t->get_number("lr_net", T.lr_net);
-    if (!(T.lr_net >= 0.0 && T.lr_net < 1.0)) t->fail("lr_net", "must be in [0, 1)");
-    T.lr_doe_m = t->get_number("lr_doe_m", T.lr_doe_m);
-    if (!(T.lr_doe_m >= 0.0 && T.lr_doe_m < 1e-5)) t->fail("lr_doe_m", "must be in [0, 1e-5) metres");
-    T.warmup_steps = t->get_int("warmup_steps", T.warmup_steps);
-    if (T.warmup_steps < 0) t->fail("warmup_steps", "must be >= 0");
-    T.decay = t->get_string("decay", T.decay);
-    if (T.decay != "cosine" && T.decay != "none") t->fail("decay", "expected \"cosine\" or \"none\", got \"" + T.decay + "\"");
-    T.min_lr_ratio = t->get_number("min_lr_ratio", T.min_lr_ratio);
-    if (!(T.min_lr_ratio >= 0.0 && T.min_lr_ratio <= 1.0)) t->fail("min_lr_ratio", "must be in [0, 1]");
-    T.precision = t->get_string("precision", T.precision);
-    if (T.precision != "float32" && T.precision != "bfloat16" && T.precision != "auto")
-      t->fail("precision", "expected \"float32\", \"bfloat16\" or \"auto\", got \"" + T.precision + "\"");
-    T.clip_grad_norm = t->get_number("clip_grad_norm", T.clip_grad_norm);
-    if (T.clip_grad_norm < 0.0) t->fail("clip_grad_norm", "must be >= 0 (0 = off)");
-    T.freeze_doe = t->get_bool("freeze_doe", T.freeze_doe);
-    T.init_checkpoint = t->get_string("init_checkpoint", T.init_checkpoint);
-    if (auto n = t->optional_child("fabrication_noise")) {
-      parse_fabrication_error(*n, T.fabrication_noise);
-      if (T.fabrication_noise.misalignment_m != 0.0)
-        n->fail("misalignment_m", "must be 0 in training (a mask misalignment needs the level masks; sweep it with hsd_fabricate --tolerance)");
-      if (T.fabrication_noise.height_scale_error < 0.0) n->fail("height_scale_error", "is the standard deviation of the drawn error here: must be >= 0");
-    }
-    T.loss_alpha = t->get_number("loss_alpha", T.loss_alpha);
-    T.loss_beta = t->get_number("loss_beta", T.loss_beta);
-    T.loss_gamma = t->get_number("loss_gamma", T.loss_gamma);
-    T.depth_loss = t->get_string("depth_loss", T.depth_loss);
-    if (T.depth_loss != "inverse_l1" && T.depth_loss != "metric_l1")
-      t->fail("depth_loss", "expected \"inverse_l1\" or \"metric_l1\", got \"" + T.depth_loss + "\"");
-    for (const auto& [k, v] : {std::pair<const char*, double>{"loss_alpha", T.loss_alpha},
-                               {"loss_beta", T.loss_beta}, {"loss_gamma", T.loss_gamma}})
-      if (v < 0.0) t->fail(k, "must be >= 0");
-    T.val_every = t->get_int("val_every", T.val_every);
-    T.val_patches = t->get_int("val_patches", T.val_patches);
-    T.checkpoint_every = t->get_int("checkpoint_every", T.checkpoint_every);
-    T.log_every = t->get_int("log_every", T.log_every);
-    for (const auto& [k, v] : {std::pair<const char*, int64_t>{"val_every", T.val_every}, {"val_patches", T.val_patches},
-                               {"checkpoint_every", T.checkpoint_every}, {"log_every", T.log_every}})
-      if (v < 1) t->fail(k, "must be >= 1");
-  }
-  if (auto d = r.optional_child("distributed")) {
-    auto& D = c.distributed;
-    D.timeout_s = d->get_number("timeout_s", D.timeout_s);
-    if (!(D.timeout_s >= 1.0 && D.timeout_s <= 86400.0)) d->fail("timeout_s", "must be in [1, 86400] seconds");
-    D.bucket_mib = d->get_number("bucket_mib", D.bucket_mib);
-    if (!(D.bucket_mib > 0.0 && D.bucket_mib <= 4096.0)) d->fail("bucket_mib", "must be in (0, 4096] MiB");
-    D.sync_batch_norm = d->get_bool("sync_batch_norm", D.sync_batch_norm);
-    D.split_psf = d->get_bool("split_psf", D.split_psf);
-  }
+  if (auto s = r.optional_child("sensor")) c.sensor = parse_sensor(*s);
+  if (auto f = r.optional_child("fisher")) c.fisher = parse_fisher(*f);
+  if (auto m = r.optional_child("model")) c.model = parse_model(*m);
+  if (auto t = r.optional_child("train")) c.train = parse_train(*t);
+  if (auto d = r.optional_child("distributed")) c.distributed = parse_distributed(*d);
   if (auto d = r.optional_child("data")) c.data = parse_data(*d);
-  if (auto f = r.optional_child("fabrication")) {
-    auto& F = c.fabrication;
-    F.levels = f->get_int("levels", F.levels);
-    if (F.levels < 2 || F.levels > 256 || (F.levels & (F.levels - 1)) != 0)
-      f->fail("levels", "must be a power of two in [2, 256] (log2 K binary masks)");
-    F.min_feature_m = f->get_number("min_feature_m", F.min_feature_m);
-    if (!(F.min_feature_m >= 0.0 && F.min_feature_m < 1e-3)) f->fail("min_feature_m", "must be in [0, 1e-3) metres");
-    F.cell_name = f->get_string("cell_name", F.cell_name);
-    if (F.cell_name.empty() || F.cell_name.size() > 32 ||
-        F.cell_name.find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789_?$") != std::string::npos)
-      f->fail("cell_name", "must be 1-32 characters of A-Z, a-z, 0-9, _, ? and $ (GDSII structure names)");
-    if (auto e = f->optional_child("error")) parse_fabrication_error(*e, F.error);
-    if (auto t = f->optional_child("tolerance")) {
-      auto& T = F.tolerance;
-      auto sizes = [&](const char* key, std::vector<double>& v, double lo, double hi, const char* unit) {
-        if (!t->has(key)) return;
-        v = t->get_number_array(key);
-        if (v.empty()) t->fail(key, "must list at least one size");
-        for (size_t i = 0; i < v.size(); ++i) {
-          if (!(v[i] >= lo && v[i] < hi)) t->fail(key, std::string("sizes must be in [") + c10::str(lo) + ", " + c10::str(hi) + ") " + unit);
-          if (i > 0 && !(v[i] > v[i - 1])) t->fail(key, "sizes must increase");
-        }
-      };
-      sizes("height_scale_error", T.height_scale_error, 0.0, 0.5, "(relative)");
-      sizes("roughness_rms_m", T.roughness_rms_m, 0.0, 1e-3, "metres");
-      sizes("misalignment_m", T.misalignment_m, 0.0, 1e-3, "metres");
-      sizes("edge_blur_m", T.edge_blur_m, 0.0, 1e-3, "metres");
-      sizes("decentre_m", T.decentre_m, 0.0, 1e-2, "metres");
-      T.roughness_correlation_m = t->get_number("roughness_correlation_m", T.roughness_correlation_m);
-      if (!(T.roughness_correlation_m > 0.0 && T.roughness_correlation_m < 1e-3))
-        t->fail("roughness_correlation_m", "must be in (0, 1e-3) metres");
-      T.subsamples = t->get_int("subsamples", T.subsamples);
-      if (T.subsamples < 1 || T.subsamples > 16) t->fail("subsamples", "must be in [1, 16]");
-      T.network = t->get_bool("network", T.network);
-      T.draws = t->get_int("draws", T.draws);
-      if (T.draws < 0 || T.draws > 1000) t->fail("draws", "must be in [0, 1000] (0 = off)");
-      if (auto n = t->optional_child("draw_scales")) {
-        parse_fabrication_error(*n, T.draw_scales);
-        if (T.draw_scales.misalignment_m != 0.0) n->fail("misalignment_m", "must be 0 (drawn as train.fabrication_noise draws; sweep it alone instead)");
-        if (T.draw_scales.height_scale_error < 0.0) n->fail("height_scale_error", "is the standard deviation of the drawn error here: must be >= 0");
-      }
-    }
-  }
-  if (auto k = r.optional_child("calibration")) {
-    auto& K = c.calibration;
-    K.registration = k->get_string("registration", K.registration);
-    if (K.registration != "auto" && K.registration != "centroid" && K.registration != "axis")
-      k->fail("registration", "expected \"auto\", \"centroid\" or \"axis\", got \"" + K.registration + "\"");
-    K.background = k->get_string("background", K.background);
-    if (K.background != "auto" && K.background != "dark" && K.background != "ring")
-      k->fail("background", "expected \"auto\", \"dark\" or \"ring\", got \"" + K.background + "\"");
-    K.hot_pixel_sigma = k->get_number("hot_pixel_sigma", K.hot_pixel_sigma);
-    if (!(K.hot_pixel_sigma >= 3.0 && K.hot_pixel_sigma <= 1e6)) k->fail("hot_pixel_sigma", "must be in [3, 1e6]");
-    K.hot_pixel_ratio = k->get_number("hot_pixel_ratio", K.hot_pixel_ratio);
-    if (!(K.hot_pixel_ratio >= 1.5 && K.hot_pixel_ratio <= 1e6)) k->fail("hot_pixel_ratio", "must be in [1.5, 1e6]");
-    K.min_snr = k->get_number("min_snr", K.min_snr);
-    if (!(K.min_snr >= 1.0 && K.min_snr <= 1e9)) k->fail("min_snr", "must be in [1, 1e9]");
-    if (auto y = k->optional_child("synthetic")) {
-      auto& S = K.synthetic;
-      S.frame_px = y->get_int("frame_px", S.frame_px);
-      if (S.frame_px != 0 && (S.frame_px < c.optics.psf_size || S.frame_px > 4096))
-        y->fail("frame_px", "must be 0 (automatic) or in [optics.psf_size, 4096]");
-      S.peak_counts = y->get_number("peak_counts", S.peak_counts);
-      if (!(S.peak_counts >= 10.0 && S.peak_counts <= 60000.0)) y->fail("peak_counts", "must be in [10, 60000] counts");
-      for (auto [key, v] : {std::pair<const char*, double*>{"background_counts", &S.background_counts},
-                            {"dark_counts", &S.dark_counts}, {"read_noise_counts", &S.read_noise_counts}}) {
-        *v = y->get_number(key, *v);
-        if (!(*v >= 0.0 && *v <= 10000.0)) y->fail(key, "must be in [0, 10000] counts");
-      }
-      S.hot_pixels = y->get_int("hot_pixels", S.hot_pixels);
-      if (S.hot_pixels < 0 || S.hot_pixels > 10000) y->fail("hot_pixels", "must be in [0, 10000]");
-      S.exposures = y->get_int("exposures", S.exposures);
-      if (S.exposures < 1 || S.exposures > 64) y->fail("exposures", "must be in [1, 64]");
-      S.seed = y->get_int("seed", S.seed);
-      if (S.seed < 0) y->fail("seed", "must be >= 0");
-      if (y->has("axis_offset_px")) {
-        S.axis_offset_px = y->get_number_array("axis_offset_px");
-        if (S.axis_offset_px.size() != 2 || !(std::abs(S.axis_offset_px[0]) <= 10) || !(std::abs(S.axis_offset_px[1]) <= 10))
-          y->fail("axis_offset_px", "must be [row, col], each within 10 px of the frame centre");
-      }
-    }
-  }
+  if (auto f = r.optional_child("fabrication")) c.fabrication = parse_fabrication(*f);
+  if (auto k = r.optional_child("calibration")) c.calibration = parse_calibration(*k, c.optics.psf_size);
   // The U-Net's bottom must keep a pixel of the patch, and batch norm needs
   // more than one value per channel there (batch x pixels).
   const int64_t bottom = c.data.patch_size_px >> c.model.levels;
-  if (bottom < 1 || (c.model.norm == "batch" && c.train.batch_size * bottom * bottom < 2))
+  if (bottom < 1 || (c.model.norm == NormKind::batch && c.train.batch_size * bottom * bottom < 2))
     input_error("config key model.levels", std::to_string(c.model.levels) + " poolings leave " + std::to_string(bottom) +
                                                " px of a " + std::to_string(c.data.patch_size_px) +
                                                "-px patch (data.patch_size_px)" +
                                                (bottom < 1 ? std::string("") : " for a batch of one (batch norm needs 2 values)"));
   r.check_all_used();
+  if (unlike_defaults) *unlike_defaults = r.unlike_fallback();
   return c;
 }
 

@@ -9,6 +9,7 @@
 #include <utility>
 #include <vector>
 
+#include "common/choices.h"
 #include "common/json_reader.h"
 
 namespace hsd {
@@ -33,17 +34,17 @@ struct OpticsConfig {
   double sensor_distance_m = 0.05;     // DOE to sensor [m]
   double pixel_pitch_m = 6.22e-6;      // sensor pixel pitch [m]
   double aperture_diameter_m = 2.0e-3; // circular (or square side) aperture on the DOE [m]
-  std::string aperture_shape = "circle";  // "circle" | "square"
+  ApertureShape aperture_shape = ApertureShape::circle;  // "circle" | "square"
   int64_t psf_size = 63;               // odd PSF window [pixels]
   double doe_pitch_m = 4e-6;           // DOE sample pitch [m]
   int64_t doe_samples = 512;           // DOE samples across the (square) grid
   std::string material = "fused_silica_malitson1965";  // key in data/spectra/refractive_index_materials.json
   int64_t pixel_quadrature_nodes = 0;  // Gauss-Legendre nodes per pixel and axis; 0 = auto per wavelength
   double pixel_quadrature_tol = 1e-1;  // per-Fourier-component bound of the auto rule (optics/pixel_quadrature.h)
-  std::string precision = "float32";   // "float32" | "float64" (phases are always built in float64)
+  FloatPrecision precision = FloatPrecision::float32;  // "float32" | "float64" (phases are always built in float64)
   // "store": autograd keeps every band's intermediates (fastest); "recompute":
   // keep only the height map and recompute each band in the backward pass (lean).
-  std::string psf_backward = "store";
+  PsfBackward psf_backward = PsfBackward::store;
   // Relative singular-value cut of the low-rank window kernels (optics/fresnel_mft.h); 0 = exact MFT.
   double mft_rank_tol = 1e-4;
   // Sub-samples of the pupil per DOE cell and axis: each cell of constant height
@@ -51,7 +52,7 @@ struct OpticsConfig {
   int64_t pupil_oversampling = 1;
   // How each DOE cell is integrated (optics/fresnel_mft.h): "sinc_cross" (the smooth phases'
   // linear part across the cell, with the cross term), "sinc" (without it), "midpoint" (cell centres).
-  std::string pupil_cell_integration = "sinc_cross";
+  CellIntegration pupil_cell_integration = CellIntegration::sinc_cross;
   // Wavelengths per band (Gauss–Legendre across the band, flat spectrum inside it):
   // the band's PSF is their weighted mean. 1 = the band centre only (the paper's
   // model: 4.8% worst PSF error on its 10-nm bands; 2 nodes: 1.2%, hsd_bench accuracy).
@@ -87,7 +88,7 @@ struct SensorConfig {
   double saturation = 1.0;                   // clip J to [0, saturation]; 0 disables clipping
   int64_t bit_depth = 0;                     // quantize to 2^bits − 1 levels (straight-through); 0 = off
   double mask_sigma_px = 1.0;                // Gaussian σ of the soft layer masks M_z [pixels]
-  std::string compositing = "linear";        // "linear" (the paper's model) | "occlusion" (Ikoma et al. 2021)
+  Compositing compositing = Compositing::linear;  // "linear" (the paper's model) | "occlusion" (Ikoma et al. 2021)
   std::string illuminant = "D65";            // column of data/spectra/illuminants.csv, for reflectance scenes
 };
 
@@ -100,9 +101,9 @@ struct FisherConfig {
   int64_t design_samples = 256;       // DOE samples across the grid during the design (0 = optics.doe_samples)
   int64_t wavelength_stride = 6;      // use every k-th configured band (and the last)
   int64_t depth_stride = 1;           // every k-th configured depth (and the last)
-  std::string basis = "zernike";      // "zernike" | "freeform"
+  FisherBasis basis = FisherBasis::zernike;  // "zernike" | "freeform"
   int64_t zernike_modes = 36;         // Noll modes 2..(modes+1)
-  std::string start = "fresnel";      // "fresnel" (unwrapped lens) | "flat"
+  FisherStart start = FisherStart::fresnel;  // "fresnel" (unwrapped lens) | "flat"
   int64_t steps = 100;
   double lr = 0.02;                   // Adam: micrometres of Zernike coefficient (zernike) or of height (freeform)
   // Unknown besides (1/z, λ), eliminated by the Schur complement (optics/fisher.h):
@@ -110,13 +111,13 @@ struct FisherConfig {
   std::vector<std::string> nuisance{"x", "y", "N"};
   // How the per-point bounds become one number (and the design's objective):
   // "capped_mean" (each point capped at aggregate_cap), "median", "mean" (the earlier one).
-  std::string aggregate = "capped_mean";
+  CrlbAggregate aggregate = CrlbAggregate::capped_mean;
   double aggregate_cap = 10.0;        // layers/bands
   // What the bound is for (optics/scene_fisher.h): "point" a point source of
   // known spectrum (Shechtman et al., the paper's Fisher design); "scene" a
   // 1/f² Gaussian texture seen in the camera's RGB channels (only the MTF
   // carries depth; the bound of 1/z alone, "N" in nuisance = contrast unknown).
-  std::string model = "point";
+  FisherModel model = FisherModel::point;
   double scene_noise_variance = 1e-3;  // scene: white noise relative to the texture's variance
   int64_t scene_patch_px = 64;         // scene: the bound is for a patch of this many pixels squared
 };
@@ -125,7 +126,7 @@ struct FisherConfig {
 struct ModelConfig {
   int64_t base_width = 32;      // channels of the first U-Net level, doubled per level
   int64_t levels = 4;           // poolings (inputs are padded to multiples of 2^levels)
-  std::string norm = "batch";   // "batch" | "group" | "none"
+  NormKind norm = NormKind::batch;  // "batch" | "group" | "none"
   // The depth head's sigmoid spans the depth range widened by this fraction of
   // its inverse-depth span at each end, so the nearest and farthest targets do
   // not ask for a saturated sigmoid (0 = exactly the range, the paper's form).
@@ -135,18 +136,18 @@ struct ModelConfig {
   // training split's median inverse depth), so training starts at the
   // baselines and every step is measured from them. "random": torch's default
   // initialisation of the heads (the paper's code).
-  std::string head_init = "baselines";
+  HeadInit head_init = HeadInit::baselines;
   // "wiener": the sensor image's Wiener deconvolution with every depth layer's
   // RGB PSF is input beside it (model/wiener_preinverse.h; 3 channels per
   // layer of optics.depths_m), computed from the current DOE each step.
   // "none": the image alone (the paper's network).
-  std::string preinverse = "none";
+  Preinverse preinverse = Preinverse::none;
   double preinverse_reg = 1e-2;  // the Wiener regulariser ρ (noise-to-signal power)
   // What the cube head's output is added to: "image", the spectral upsampling
   // of the sensor image (the paper's residual); "preinverse", the spectral
   // upsampling of the mean of the layers' Wiener deconvolutions (needs
   // preinverse = "wiener"): a sharper start the network refines.
-  std::string residual = "image";
+  ResidualBase residual = ResidualBase::image;
 };
 
 // The errors a fab makes, applied to a DOE height map (optics/fabrication_error.h):
@@ -168,7 +169,7 @@ struct TrainConfig {
   double lr_net = 5e-4;             // Adam, network parameters
   double lr_doe_m = 2e-9;           // Adam, DOE height (metres per step at full rate)
   int64_t warmup_steps = 50;        // linear warm-up of both rates
-  std::string decay = "cosine";     // "cosine" (to min_lr_ratio at the last step) | "none"
+  LrDecay decay = LrDecay::cosine;  // "cosine" (to min_lr_ratio at the last step) | "none"
   double min_lr_ratio = 0.05;
   double clip_grad_norm = 1.0;      // the network's gradient norm (not the DOE's); 0 = off
   bool freeze_doe = false;          // fixed-DOE ablations
@@ -179,7 +180,7 @@ struct TrainConfig {
   double loss_alpha = 1.0, loss_beta = 1e-2, loss_gamma = 1e-2;  // L1 cube, L1 inverse depth, TV of predicted inverse depth
   // The depth term's unit: "inverse_l1" (|1/Ẑ − 1/Z|, the paper) or
   // "metric_l1" (|Ẑ − Z| in metres, the unit the evaluation reports).
-  std::string depth_loss = "inverse_l1";
+  DepthLoss depth_loss = DepthLoss::inverse_l1;
   int64_t val_every = 100;          // steps between validations (and the last step)
   int64_t val_patches = 8;          // fixed validation patches from the val split
   int64_t checkpoint_every = 100;   // steps between checkpoints (and the last step)
@@ -190,7 +191,7 @@ struct TrainConfig {
   // float32 master weights, optimizer, norms and loss), or "auto" (bfloat16 on
   // a CPU with native bfloat16 arithmetic, float32 elsewhere). Validation,
   // evaluation and the optics are float32 whatever this says.
-  std::string precision = "float32";
+  TrainPrecision precision = TrainPrecision::float32;
   // Fabrication-aware training (optics/fabrication_error.h): each step the
   // height map the optics see is the DOE perturbed by random errors of these
   // scales (etch depth e ~ N(0, height_scale_error²), new roughness of this
@@ -260,13 +261,13 @@ struct CalibrationConfig {
   // "auto": register to captures.json's axis_px when it gives one, else to each
   // slice's centroid; "centroid": every slice centred on its centroid
   // (docs/interfaces.md); "axis": every slice on axis_px (required).
-  std::string registration = "auto";
+  Registration registration = Registration::automatic;
   // The background under the PSF: "auto" ("dark" when captures.json gives
   // dark frames, else "ring"); "dark": the dark frames (taken with the source
   // off: dark current and stray light) are the whole background; "ring": also
   // subtract the median of the frame's outer ring (which holds any light the
   // DOE scatters that far: biased for wide-angle scatter, README).
-  std::string background = "auto";
+  CaptureBackground background = CaptureBackground::automatic;
   double hot_pixel_sigma = 8.0;   // a hot pixel is this many noise σ above its neighbours' median ...
   double hot_pixel_ratio = 3.0;   // ... and this many times its brightest neighbour
   double min_snr = 10.0;          // a capture whose peak is below this many noise σ holds no signal (exit 2)
@@ -342,8 +343,11 @@ struct Config {
 };
 
 // Parses and validates; InputError naming the key path on any problem,
-// including keys that no part of hsd reads.
-Config parse_config(const Json& resolved);
+// including keys that no part of hsd reads. The structs above hold every
+// default (one source of them); with unlike_defaults, the dotted paths of the
+// scalar keys whose value differs from it are listed there (configs/base.json
+// has none: tests/test_config.cpp).
+Config parse_config(const Json& resolved, std::vector<std::string>* unlike_defaults = nullptr);
 // load_json_with_extends(path), apply every "--set" override, parse_config.
 Config load_config(const std::string& path, const std::vector<std::string>& overrides);
 

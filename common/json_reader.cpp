@@ -141,11 +141,19 @@ void apply_override(Json& root, const std::string& assignment) {
   }
 }
 
-JsonReader::JsonReader(const Json& root)
-    : JsonReader(&root, "", std::make_shared<std::set<std::string>>()) {}
+JsonReader::JsonReader(const Json& root) : JsonReader(&root, "", std::make_shared<Shared>()) {}
 
-JsonReader::JsonReader(const Json* node, std::string prefix, std::shared_ptr<std::set<std::string>> used)
-    : node_(node), prefix_(std::move(prefix)), used_(std::move(used)) {}
+JsonReader::JsonReader(const Json* node, std::string prefix, std::shared_ptr<Shared> shared)
+    : node_(node), prefix_(std::move(prefix)), shared_(std::move(shared)) {}
+
+void JsonReader::record_unlike_fallback() { shared_->record = true; }
+std::vector<std::string> JsonReader::unlike_fallback() const { return shared_->unlike; }
+
+template <class T>
+T JsonReader::noted(const std::string& key, T value, const T& fallback) const {
+  if (shared_->record && !(value == fallback)) shared_->unlike.push_back(path(key));
+  return value;
+}
 
 std::string JsonReader::path(const std::string& key) const {
   return prefix_.empty() ? key : prefix_ + "." + key;
@@ -166,14 +174,14 @@ bool JsonReader::has(const std::string& key) const { return node_->contains(key)
 
 const Json& JsonReader::at(const std::string& key) const {
   if (!node_->contains(key)) fail(key, "missing (required)");
-  used_->insert(path(key));
+  shared_->used.insert(path(key));
   return (*node_)[key];
 }
 
 JsonReader JsonReader::child(const std::string& key) const {
   const Json& j = at(key);
   if (!j.is_object()) fail(key, "expected an object, got " + type_name(j));
-  return JsonReader(&j, path(key), used_);
+  return JsonReader(&j, path(key), shared_);
 }
 
 std::optional<JsonReader> JsonReader::optional_child(const std::string& key) const {
@@ -189,12 +197,12 @@ double JsonReader::get_number(const std::string& key) const {
   return v;
 }
 double JsonReader::get_number(const std::string& key, double fallback) const {
-  return has(key) ? get_number(key) : fallback;
+  return has(key) ? noted(key, get_number(key), fallback) : fallback;
 }
 double JsonReader::get_number_or_null(const std::string& key, double fallback) const {
   if (!has(key)) return fallback;
   if (at(key).is_null()) return fallback;
-  return get_number(key);
+  return noted(key, get_number(key), fallback);
 }
 
 int64_t JsonReader::get_int(const std::string& key) const {
@@ -207,7 +215,7 @@ int64_t JsonReader::get_int(const std::string& key) const {
   fail(key, "expected an integer, got " + (j.is_number() ? j.dump() : type_name(j)));
 }
 int64_t JsonReader::get_int(const std::string& key, int64_t fallback) const {
-  return has(key) ? get_int(key) : fallback;
+  return has(key) ? noted(key, get_int(key), fallback) : fallback;
 }
 
 std::string JsonReader::get_string(const std::string& key) const {
@@ -216,7 +224,7 @@ std::string JsonReader::get_string(const std::string& key) const {
   return j.get<std::string>();
 }
 std::string JsonReader::get_string(const std::string& key, const std::string& fallback) const {
-  return has(key) ? get_string(key) : fallback;
+  return has(key) ? noted(key, get_string(key), fallback) : fallback;
 }
 
 std::vector<double> JsonReader::get_number_array(const std::string& key) const {
@@ -249,7 +257,7 @@ void find_unused(const Json& j, const std::string& prefix, const std::set<std::s
 
 void JsonReader::check_all_used() const {
   std::string first;
-  find_unused(*node_, prefix_, *used_, first);
+  find_unused(*node_, prefix_, shared_->used, first);
   if (!first.empty()) input_error("config key " + first, "unknown key (misspelt, or not valid here)");
 }
 
@@ -268,7 +276,7 @@ bool JsonReader::get_bool(const std::string& key, bool fallback) const {
   if (!has(key)) return fallback;
   const Json& j = at(key);
   if (!j.is_boolean()) fail(key, "expected true or false, got " + type_name(j));
-  return j.get<bool>();
+  return noted(key, j.get<bool>(), fallback);
 }
 
 }  // namespace hsd

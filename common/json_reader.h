@@ -59,12 +59,25 @@ class JsonReader {
   // InputError naming the first key in the tree that no getter consumed.
   void check_all_used() const;
 
+  // From now on, this reader and its children note every key read with a
+  // fallback whose value in the file differs from that fallback (the check
+  // that configs/base.json states the structs' defaults: tests/test_config.cpp).
+  void record_unlike_fallback();
+  std::vector<std::string> unlike_fallback() const;  // dotted paths, in reading order
+
  private:
-  JsonReader(const Json* node, std::string prefix, std::shared_ptr<std::set<std::string>> used);
+  struct Shared {
+    std::set<std::string> used;
+    bool record = false;
+    std::vector<std::string> unlike;
+  };
+  JsonReader(const Json* node, std::string prefix, std::shared_ptr<Shared> shared);
   const Json& at(const std::string& key) const;  // marks used
+  template <class T>
+  T noted(const std::string& key, T value, const T& fallback) const;  // value, noting it if unlike the fallback
   const Json* node_;
   std::string prefix_;
-  std::shared_ptr<std::set<std::string>> used_;
+  std::shared_ptr<Shared> shared_;
 };
 
 }  // namespace hsd

@@ -17,15 +17,15 @@ std::string flat(const std::string& name) {
 }
 
 // TorchScript for one conv -> norm -> ReLU (×2) block registered under `mod`.
-void block_source(std::ostringstream& o, const std::string& var, const std::string& mod, const std::string& norm) {
-  const int stride = norm == "none" ? 2 : 3;  // Sequential indices per (conv, [norm], relu)
+void block_source(std::ostringstream& o, const std::string& var, const std::string& mod, NormKind norm) {
+  const int stride = norm == NormKind::none ? 2 : 3;  // Sequential indices per (conv, [norm], relu)
   for (int k = 0; k < 2; ++k) {
     const std::string conv = mod + "." + std::to_string(stride * k);
     o << "        " << var << " = torch.conv2d(" << var << ", self." << flat(conv + ".weight") << ", "
-      << (norm == "none" ? "self." + flat(conv + ".bias") : std::string("None")) << ", [1, 1], [1, 1], [1, 1], 1)\n";
-    if (norm != "none") {
+      << (norm == NormKind::none ? "self." + flat(conv + ".bias") : std::string("None")) << ", [1, 1], [1, 1], [1, 1], 1)\n";
+    if (norm != NormKind::none) {
       const std::string n = mod + "." + std::to_string(stride * k + 1);
-      if (norm == "batch")
+      if (norm == NormKind::batch)
         o << "        " << var << " = torch.batch_norm(" << var << ", self." << flat(n + ".weight") << ", self."
           << flat(n + ".bias") << ", self." << flat(n + ".running_mean") << ", self." << flat(n + ".running_var")
           << ", False, 0.1, 1e-05, False)\n";
@@ -46,7 +46,7 @@ torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
   for (const auto& p : net->named_parameters()) m.register_parameter(flat(p.key()), p.value().detach().clone(), false);
   for (const auto& b : net->named_buffers())
     if (b.key().find("num_batches_tracked") == std::string::npos) m.register_buffer(flat(b.key()), b.value().detach().clone());
-  if (opt.norm == "group")
+  if (opt.norm == NormKind::group)
     for (const auto& mod : net->named_modules())
       if (auto* g = mod.value()->as<torch::nn::GroupNormImpl>())
         m.register_attribute("groups_" + flat(mod.key()), c10::IntType::get(), g->options.num_groups());

@@ -14,9 +14,9 @@ namespace F = torch::nn::functional;
 torch::nn::Sequential HsdNetImpl::block(int64_t in, int64_t out) {
   torch::nn::Sequential s;
   for (int k = 0; k < 2; ++k) {
-    s->push_back(torch::nn::Conv2d(torch::nn::Conv2dOptions(k == 0 ? in : out, out, 3).padding(1).bias(opt_.norm == "none")));
-    if (opt_.norm == "batch") s->push_back(SyncBatchNorm2d(out));
-    else if (opt_.norm == "group") s->push_back(torch::nn::GroupNorm(std::min<int64_t>(8, out), out));
+    s->push_back(torch::nn::Conv2d(torch::nn::Conv2dOptions(k == 0 ? in : out, out, 3).padding(1).bias(opt_.norm == NormKind::none)));
+    if (opt_.norm == NormKind::batch) s->push_back(SyncBatchNorm2d(out));
+    else if (opt_.norm == NormKind::group) s->push_back(torch::nn::GroupNorm(std::min<int64_t>(8, out), out));
     s->push_back(torch::nn::ReLU(true));
   }
   return s;

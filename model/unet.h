@@ -22,16 +22,19 @@
 
 #include <torch/torch.h>
 
+#include "common/choices.h"
 #include "model/replica_group.h"
 
 namespace hsd::model {
 
+// net_options(cfg) (model/net_options.h) fills these from a config; the
+// defaults here are for a network built by hand.
 struct NetOptions {
   int64_t in_channels = 3;
   int64_t bands = 25;              // L
   int64_t base_width = 32;         // channels of the first level; doubled per level
   int64_t levels = 4;              // poolings
-  std::string norm = "batch";      // "batch" | "group" | "none"
+  NormKind norm = NormKind::batch;
   double depth_min_m = 0.4, depth_max_m = 2.0;
   torch::ScalarType train_dtype = torch::kFloat32;  // kFloat32 | kBFloat16: the convolutions' dtype in training mode
   // Wiener pre-inversion (wiener_preinverse.h): 0 = off (the paper's network);

@@ -16,8 +16,8 @@ torch::Tensor all_in_focus_psf(const OpticsConfig& cfg, const Material& material
   one.band_width_nm = 0.0;
   one.spectral_samples = 1;
   one.depths_m = {z0};
-  one.precision = "float64";
-  one.pupil_cell_integration = "midpoint";  // an ideal, continuous lens (no cell staircase)
+  one.precision = FloatPrecision::float64;
+  one.pupil_cell_integration = CellIntegration::midpoint;  // an ideal, continuous lens (no cell staircase)
   const PsfSimulator sim(make_psf_spec(one, material, torch::kCPU));
   const torch::Tensor h = fresnel_height(cfg.doe_samples, cfg.doe_pitch_m, lambda0, material.index(lambda0), z0,
                                          cfg.sensor_distance_m);

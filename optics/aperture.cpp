@@ -10,17 +10,16 @@ torch::Tensor centred_coordinates(int64_t n, double pitch_m) {
   return (torch::arange(n, torch::kFloat64) - 0.5 * double(n - 1)) * pitch_m;
 }
 
-torch::Tensor aperture_transmission(int64_t n, double pitch_m, double diameter_m, const std::string& shape) {
+torch::Tensor aperture_transmission(int64_t n, double pitch_m, double diameter_m, ApertureShape shape) {
   const int64_t ss = 8;
   // sub-sample coordinates: cell j spans [x_j − δ/2, x_j + δ/2]
   const torch::Tensor sub = (torch::arange(n * ss, torch::kFloat64) + 0.5) / double(ss) - 0.5 * double(n);
   const torch::Tensor x = sub * pitch_m;  // [N·ss]
   const double r = 0.5 * diameter_m;
-  if (shape == "square") {
+  if (shape == ApertureShape::square) {
     const torch::Tensor inside = (x.abs() <= r).to(torch::kFloat64).view({n, ss}).mean(1);  // [N]
     return torch::outer(inside, inside);
   }
-  if (shape != "circle") input_error("config key optics.aperture_shape", "unknown shape \"" + shape + "\"");
   // A cell's value is the mean over its ss×ss sub-samples of [x_a² + y_b² ≤ r²].
   // Rounding is monotone, so a cell whose farthest sub-sample sum is inside is
   // wholly inside and one whose nearest is outside wholly outside: only the

@@ -6,11 +6,13 @@
 
 #include <torch/types.h>
 
+#include "common/choices.h"
+
 namespace hsd::optics {
 
 // float64 [N, N] in [0, 1]. shape: "circle" (diameter D) or "square" (side D),
 // centred on the grid centre (between samples for even N).
-torch::Tensor aperture_transmission(int64_t n, double pitch_m, double diameter_m, const std::string& shape);
+torch::Tensor aperture_transmission(int64_t n, double pitch_m, double diameter_m, ApertureShape shape);
 
 // Sample coordinates of an N-point grid of pitch δ centred on 0: (j − (N−1)/2)·δ, float64 [N].
 torch::Tensor centred_coordinates(int64_t n, double pitch_m);

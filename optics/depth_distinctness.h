@@ -52,7 +52,6 @@ struct SceneDepthCue {
 // noise_variance: σ² relative to the texture's variance (> 0);
 // corner_cycles_per_px: f₀ (> 0). Float64, on DFTs zero-padded to at least 2P
 // and 128 samples.
-SceneDepthCue scene_depth_cue(const torch::Tensor& psf, double noise_variance = 1e-3,
-                              double corner_cycles_per_px = 1.0 / 64);
+SceneDepthCue scene_depth_cue(const torch::Tensor& psf, double noise_variance, double corner_cycles_per_px = 1.0 / 64);
 
 }  // namespace hsd::optics

@@ -127,8 +127,6 @@ const std::vector<std::string>& nuisance_names() {
 }  // namespace
 
 void check_aggregate(const FisherSettings& s) {
-  if (s.aggregate != "capped_mean" && s.aggregate != "median" && s.aggregate != "mean")
-    throw InputError("config key fisher.aggregate: expected capped_mean, median or mean, got \"" + s.aggregate + "\"");
   if (!(s.aggregate_cap > 0)) throw InputError("config key fisher.aggregate_cap: must be > 0");
 }
 
@@ -138,7 +136,7 @@ void set_aggregates(CrlbReport& r, const torch::Tensor& t, const FisherSettings&
   r.aggregate_mean = mean.item<double>();
   r.aggregate_capped = capped.item<double>();
   r.aggregate_median = median.item<double>();
-  r.aggregate = s.aggregate == "mean" ? mean : s.aggregate == "median" ? median : capped;
+  r.aggregate = s.aggregate == CrlbAggregate::mean ? mean : s.aggregate == CrlbAggregate::median ? median : capped;
 }
 
 CrlbReport crlb_report(const FisherGeometry& g, const Material& material, const torch::Tensor& height_m,

@@ -104,11 +104,11 @@ struct FisherSettings {
   std::vector<double> wavelengths_nm, depths_m;  // the evaluation grid
   double inv_depth_spacing = 1.0, band_width_nm = 10.0;  // aggregation scales
   std::vector<std::string> nuisance{"x", "y", "N"};    // unknown besides (D, λ): any of x, y, N
-  std::string aggregate = "capped_mean";               // "capped_mean" | "median" | "mean"
+  CrlbAggregate aggregate = CrlbAggregate::capped_mean;
   double aggregate_cap = 10.0;                         // cap of t per grid point (layers/bands)
 };
 
-// InputError unless s.aggregate and s.aggregate_cap are valid.
+// InputError unless s.aggregate_cap is valid.
 void check_aggregate(const FisherSettings& s);
 // r.aggregate (the one s.aggregate names, differentiable) and the three
 // aggregate_* values from the per-point bounds t (any shape).

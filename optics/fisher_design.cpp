@@ -72,7 +72,7 @@ FisherDesign design_fisher_doe(const FisherGeometry& g, const CrlbObjective& obj
   FisherDesign d;
   d.basis = cfg.basis;
   torch::Tensor basis;
-  if (cfg.basis == "zernike") {
+  if (cfg.basis == FisherBasis::zernike) {
     basis = zernike_basis(2, cfg.zernike_modes, g.doe_samples, g.doe_pitch_m, g.aperture_diameter_m);  // [K, N, N]
     d.parameters_um = torch::zeros({cfg.zernike_modes}, torch::kFloat64);
   } else {
@@ -80,7 +80,7 @@ FisherDesign design_fisher_doe(const FisherGeometry& g, const CrlbObjective& obj
   }
   d.parameters_um.set_requires_grad(true);
   auto height = [&] {
-    const torch::Tensor delta = cfg.basis == "zernike"
+    const torch::Tensor delta = cfg.basis == FisherBasis::zernike
                                     ? torch::tensordot(d.parameters_um, basis, {0}, {0})
                                     : d.parameters_um;
     return wrap_height(start_raw_height_m + 1e-6 * delta, max_height_m);
@@ -109,7 +109,7 @@ FisherDesign design_fisher_doe(const FisherGeometry& g, const CrlbObjective& obj
 torch::Tensor design_height_on_grid(const FisherDesign& d, const torch::Tensor& start_raw_height_m, int64_t n,
                                     double pitch_m, double aperture_diameter_m, double max_height_m) {
   torch::Tensor delta;
-  if (d.basis == "zernike") {
+  if (d.basis == FisherBasis::zernike) {
     const torch::Tensor basis = zernike_basis(2, d.parameters_um.size(0), n, pitch_m, aperture_diameter_m);
     delta = torch::tensordot(d.parameters_um, basis, {0}, {0});
   } else {

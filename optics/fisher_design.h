@@ -17,7 +17,7 @@
 namespace hsd::optics {
 
 struct FisherDesign {
-  std::string basis;                   // "zernike" | "freeform"
+  FisherBasis basis = FisherBasis::zernike;
   torch::Tensor parameters_um;         // Zernike coefficients [K] or free-form height offsets [N, N] (µm)
   torch::Tensor height_m;              // [N, N] float64 on the design grid, wrapped
   std::vector<double> curve;           // aggregated CRLB per step (before the step), then the final value

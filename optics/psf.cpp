@@ -24,9 +24,9 @@ PsfSpec make_psf_spec(const OpticsConfig& cfg, const Material& material, torch::
   s.doe_pitch_m = cfg.doe_pitch_m;
   s.doe_samples = cfg.doe_samples;
   s.psf_size = cfg.psf_size;
-  s.real_dtype = cfg.precision == "float64" ? torch::kFloat64 : torch::kFloat32;
+  s.real_dtype = cfg.precision == FloatPrecision::float64 ? torch::kFloat64 : torch::kFloat32;
   s.device = device;
-  s.recompute_in_backward = cfg.psf_backward == "recompute";
+  s.recompute_in_backward = cfg.psf_backward == PsfBackward::recompute;
   s.mft_rank_tol = cfg.mft_rank_tol;
   s.pupil_oversampling = cfg.pupil_oversampling;
   s.pupil_cell_integration = cfg.pupil_cell_integration;
@@ -52,11 +52,18 @@ PsfSpec converged_reference(const PsfSpec& spec) {
   return r;
 }
 
+double PsfSpec::resolved_band_width_m() const {
+  if (band_width_m > 0.0) return band_width_m;
+  if (wavelengths_m.size() < 2) return 10e-9;
+  return (wavelengths_m.back() - wavelengths_m.front()) / double(wavelengths_m.size() - 1);
+}
+
 std::vector<double> PsfSpec::spectral_wavelengths_m() const {
   const Quadrature1D q = gauss_legendre(int(spectral_samples));
+  const double w = resolved_band_width_m();
   std::vector<double> out;
   for (double c : wavelengths_m)
-    for (double u : q.nodes) out.push_back(c + (spectral_samples > 1 ? band_width_m * u : 0.0));
+    for (double u : q.nodes) out.push_back(c + (spectral_samples > 1 ? w * u : 0.0));
   return out;
 }
 
@@ -79,14 +86,12 @@ PsfSimulator::PsfSimulator(PsfSpec spec) : spec_(std::move(spec)) {
     throw InputError("PSF: refractive_index and pixel_nodes need one entry per wavelength");
   if (s.psf_size < 1 || s.psf_size % 2 == 0) throw InputError("PSF: psf_size must be odd");
   if (s.pupil_oversampling < 1) throw InputError("PSF: pupil_oversampling must be >= 1");
-  if (s.pupil_cell_integration != "sinc" && s.pupil_cell_integration != "sinc_cross" &&
-      s.pupil_cell_integration != "midpoint")
-    throw InputError("PSF: pupil_cell_integration must be \"sinc_cross\", \"sinc\" or \"midpoint\"");
   if (s.spectral_samples < 1) throw InputError("PSF: spectral_samples must be >= 1");
   const size_t K = size_t(s.spectral_samples);
-  if (K > 1 && !(s.band_width_m > 0.0)) throw InputError("PSF: spectral_samples > 1 needs band_width_m > 0");
+  if (!(s.band_width_m >= 0.0)) throw InputError("PSF: band_width_m must be >= 0 (0 = the wavelengths' spacing)");
   if (K > 1 && s.spectral_refractive_index.size() != L * K)
-    throw InputError("PSF: spectral_refractive_index needs " + std::to_string(L * K) + " entries (bands x spectral_samples)");
+    throw InputError("PSF: spectral_samples = " + std::to_string(K) + " needs spectral_refractive_index with " + std::to_string(L * K) +
+                     " entries (bands x spectral_samples; make_psf_spec fills it from the material), or spectral_samples = 1");
   node_wavelength_m_ = s.spectral_wavelengths_m();
   node_weight_ = s.spectral_weights();
   node_index_ = K > 1 ? s.spectral_refractive_index : s.refractive_index;

@@ -23,6 +23,10 @@
 namespace hsd::optics {
 
 // Everything the PSF depends on apart from the height map. SI units.
+// make_psf_spec fills it from the config; the numerical-method settings of a
+// spec built by hand default to the config's defaults (OpticsConfig in
+// common/config.h, the one source of them, checked against configs/base.json
+// by a test), so a library user gets the simulator the apps run.
 struct PsfSpec {
   std::vector<double> wavelengths_m;     // [L] band centres
   std::vector<double> depths_m;          // [Z] source distances from the DOE
@@ -31,7 +35,7 @@ struct PsfSpec {
   double sensor_distance_m = 0.0;
   double pixel_pitch_m = 0.0;
   double aperture_diameter_m = 0.0;
-  std::string aperture_shape = "circle";
+  ApertureShape aperture_shape = OpticsConfig{}.aperture_shape;
   double doe_pitch_m = 0.0;
   int64_t doe_samples = 0;  // N
   int64_t psf_size = 0;     // P (odd)
@@ -40,10 +44,10 @@ struct PsfSpec {
   // false: autograd stores every band's intermediate tensors (fastest);
   // true: only the height map is stored and each band is recomputed in the
   // backward pass (about 1.5x the time of forward+backward, a fraction of the memory).
-  bool recompute_in_backward = false;
+  bool recompute_in_backward = OpticsConfig{}.psf_backward == PsfBackward::recompute;
   // Relative singular-value cut of the low-rank tilt kernels (fresnel_mft.h);
   // 0 = the exact matrix Fourier transform.
-  double mft_rank_tol = 1e-6;
+  double mft_rank_tol = OpticsConfig{}.mft_rank_tol;
   // With mft_rank_tol > 0: also factor each wavelength's kernels jointly over
   // all depths (fresnel_mft.h, DepthBasis), so the depths share one product
   // with the pupil field. Costs a one-off factorisation per wavelength (about
@@ -53,23 +57,27 @@ struct PsfSpec {
   bool depth_basis = false;
   // Pupil sub-samples per DOE cell and axis (k): the height map stays [N, N];
   // each cell of constant height is evaluated at k×k points of pitch δ/k.
-  int64_t pupil_oversampling = 1;
+  int64_t pupil_oversampling = OpticsConfig{}.pupil_oversampling;
   // How each pupil cell is integrated (fresnel_mft.h, cell_average_factor):
   // "sinc_cross" integrates the linear part of the smooth phases across the
   // cell including the cross term (two kernel terms), "sinc" without it (one
   // term), "midpoint" takes their value at the cell centre.
-  std::string pupil_cell_integration = "sinc_cross";
+  CellIntegration pupil_cell_integration = OpticsConfig{}.pupil_cell_integration;
   // Wavelengths per band (K): Gauss–Legendre nodes λ_c + w·u_k across the band of
-  // width band_width_m (flat spectrum inside it); the band's PSF is Σ_k w_k P(λ_k).
-  // K = 1 is the band centre. spectral_refractive_index holds η at the L·K
-  // nodes, band-major (make_psf_spec fills it from the material).
-  int64_t spectral_samples = 1;
+  // width band_width_m (flat spectrum inside it; 0 = the spacing of
+  // wavelengths_m, 10 nm for one band, as optics.band_width_nm); the band's
+  // PSF is Σ_k w_k P(λ_k). K = 1 is the band centre. With K > 1,
+  // spectral_refractive_index holds η at the L·K nodes, band-major
+  // (make_psf_spec fills it from the material; a spec built by hand sets it,
+  // or K = 1).
+  int64_t spectral_samples = OpticsConfig{}.spectral_samples;
   double band_width_m = 0.0;
   std::vector<double> spectral_refractive_index;
 
-  bool cell_sinc() const { return pupil_cell_integration != "midpoint"; }       // sinc factors on the cells
-  int64_t cell_kernel_terms() const { return pupil_cell_integration == "sinc_cross" ? 2 : 1; }  // G
+  bool cell_sinc() const { return pupil_cell_integration != CellIntegration::midpoint; }       // sinc factors on the cells
+  int64_t cell_kernel_terms() const { return pupil_cell_integration == CellIntegration::sinc_cross ? 2 : 1; }  // G
   int64_t pupil_samples() const { return doe_samples * pupil_oversampling; }   // N·k
+  double resolved_band_width_m() const;  // band_width_m, or the wavelengths' spacing when it is 0
   double pupil_pitch_m() const { return doe_pitch_m / double(pupil_oversampling); }  // δ/k
   // The L·K wavelengths and weights of the spectral quadrature, band-major.
   std::vector<double> spectral_wavelengths_m() const;

@@ -12,7 +12,7 @@ SensorModel make_sensor_model(const SensorConfig& cfg, const PsfSpec& spec, doub
   SensorModel m;
   m.omega = camera_response(cfg.camera, spec.wavelengths_m, band_width_m).to(spec.device);
   m.mask_sigma_px = cfg.mask_sigma_px;
-  m.occlusion = cfg.compositing == "occlusion";
+  m.occlusion = cfg.compositing == Compositing::occlusion;
   m.noise.std_max = cfg.noise_std;
   m.noise.std_min = cfg.noise_std_min;
   m.noise.photons_at_saturation = cfg.photons_at_saturation;

@@ -13,8 +13,12 @@
 
 namespace hsd::optics {
 
+// make_sensor_model fills it from sensor.*; a model built by hand starts with
+// no read or shot noise, and its σ range means what sensor.noise_std_min's does.
 struct NoiseModel {
-  double std_min = 0.0, std_max = 0.0;  // read-noise σ range (relative to saturation)
+  // Read-noise σ range (relative to saturation): σ ~ U[std_min, std_max] per
+  // image; std_min < 0 (the default, as sensor.noise_std_min) = a fixed σ = std_max.
+  double std_min = -1.0, std_max = 0.0;
   double photons_at_saturation = 0.0;   // 0: no shot noise
   double saturation = 1.0;              // 0: no clipping
   int64_t bit_depth = 0;                // 0: no quantization

@@ -203,7 +203,7 @@ TEST_CASE("heads started at the baselines: the untrained network outputs exactly
           "[baselines][model]") {
   torch::manual_seed(3);
   model::NetOptions o;
-  o.bands = 5, o.base_width = 4, o.levels = 2, o.norm = "group", o.depth_min_m = 0.4, o.depth_max_m = 2.5;
+  o.bands = 5, o.base_width = 4, o.levels = 2, o.norm = NormKind::group, o.depth_min_m = 0.4, o.depth_max_m = 2.5;
   const torch::Tensor w = torch::rand({5, 3});
   model::HsdNet net(o, w);
   const torch::Tensor x = torch::rand({2, 3, 20, 24});

@@ -1,6 +1,7 @@
 // Config parsing: extends, --set, typed values, and one clear error naming the
 // key path for unknown keys, wrong types and out-of-range values.
 #include <catch2/catch.hpp>
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -97,4 +98,24 @@ TEST_CASE("sample_stats gives the mean and the n-1 standard deviation", "[common
   CHECK(sample_stats({5.0}).sd == 0.0);
   CHECK(sample_stats({}).n == 0);
   CHECK(sample_stats({}).mean == 0.0);
+}
+
+TEST_CASE("configs/base.json states the structs' defaults (one source of them)", "[config]") {
+  // Every scalar key of base.json read with the struct's default as fallback
+  // must hold that default: a default changed in one place and not the other fails here.
+  const Json base = load_json_with_extends(test::source_path("configs/base.json"));
+  std::vector<std::string> unlike;
+  parse_config(base, &unlike);
+  std::string list;
+  for (const auto& k : unlike) list += k + " ";
+  INFO("keys of base.json unlike the struct defaults: " << list);
+  CHECK(unlike.empty());
+  // The check can fail: one changed key is named.
+  Json changed = base;
+  changed["optics"]["mft_rank_tol"] = 1e-3;
+  changed["optics"]["doe"]["quantization_levels"] = 8;
+  unlike.clear();
+  parse_config(changed, &unlike);
+  CHECK(std::find(unlike.begin(), unlike.end(), "optics.mft_rank_tol") != unlike.end());
+  CHECK(std::find(unlike.begin(), unlike.end(), "optics.doe.quantization_levels") != unlike.end());
 }

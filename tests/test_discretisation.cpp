@@ -29,16 +29,16 @@ TEST_CASE("pupil oversampling converges and sinc cell integration beats the midp
   auto spec = test::make_spec({420e-9}, {0.05, 0.2}, N, pitch, 0.45e-3, 15, 4e-6, 0.03, 3);
   const torch::Tensor h = optics::fresnel_height(N, pitch, 550e-9, 1.5, 0.1, 0.03);
   torch::NoGradGuard ng;
-  auto run = [&](int64_t k, const std::string& rule) {
+  auto run = [&](int64_t k, CellIntegration rule) {
     auto s = spec;
     s.pupil_oversampling = k;
     s.pupil_cell_integration = rule;
     return optics::PsfSimulator(s).compute(h).psf;
   };
-  const torch::Tensor ref = run(8, "sinc_cross");
-  const double mid1 = rel_l1_max(run(1, "midpoint"), ref), mid2 = rel_l1_max(run(2, "midpoint"), ref);
-  const double sinc1 = rel_l1_max(run(1, "sinc"), ref), sinc2 = rel_l1_max(run(2, "sinc"), ref);
-  const double cross1 = rel_l1_max(run(1, "sinc_cross"), ref), cross2 = rel_l1_max(run(2, "sinc_cross"), ref);
+  const torch::Tensor ref = run(8, CellIntegration::sinc_cross);
+  const double mid1 = rel_l1_max(run(1, CellIntegration::midpoint), ref), mid2 = rel_l1_max(run(2, CellIntegration::midpoint), ref);
+  const double sinc1 = rel_l1_max(run(1, CellIntegration::sinc), ref), sinc2 = rel_l1_max(run(2, CellIntegration::sinc), ref);
+  const double cross1 = rel_l1_max(run(1, CellIntegration::sinc_cross), ref), cross2 = rel_l1_max(run(2, CellIntegration::sinc_cross), ref);
   INFO("midpoint x1 " << mid1 << ", x2 " << mid2 << "; sinc x1 " << sinc1 << ", x2 " << sinc2 << "; sinc_cross x1 "
                       << cross1 << ", x2 " << cross2);
   CHECK(mid2 < 0.5 * mid1);    // second-order convergence in the cell size
@@ -54,10 +54,10 @@ TEST_CASE("pupil oversampling converges and sinc cell integration beats the midp
   CHECK(rel_l1_max(b, a) < 1e-5);
   // The reference does not favour the rule it was made with: the midpoint rule
   // at twice its oversampling lands on it, far below the errors compared above.
-  const double mid16 = rel_l1_max(run(16, "midpoint"), ref);
+  const double mid16 = rel_l1_max(run(16, CellIntegration::midpoint), ref);
   INFO("midpoint x16 vs the sinc_cross x8 reference: " << mid16);
   CHECK(mid16 < 0.25 * cross2);
-  CHECK(run(3, "sinc").sizes() == ref.sizes());  // the height map stays [N, N] at any k
+  CHECK(run(3, CellIntegration::sinc).sizes() == ref.sizes());  // the height map stays [N, N] at any k
   // The sampling check uses the sub-sample pitch.
   auto s1 = spec;
   const auto r1 = optics::check_sampling(s1, torch::Tensor(), 0.0);
@@ -300,4 +300,34 @@ TEST_CASE("PSF energy leaving the window is reported with numbers", "[psf][stiff
   for (const auto& w : rep.warnings) named |= w.find("reaches the 5-pixel window") != std::string::npos;
   CHECK(named);
   CHECK(torch::isfinite(out.psf).all().item<bool>());
+}
+
+TEST_CASE("a PsfSpec built by hand has the config's numerical settings, and band_width_m 0 is the bands' spacing", "[psf][discretisation]") {
+  const optics::PsfSpec hand;
+  const OpticsConfig o;
+  CHECK(hand.mft_rank_tol == o.mft_rank_tol);
+  CHECK(hand.spectral_samples == o.spectral_samples);
+  CHECK(hand.pupil_oversampling == o.pupil_oversampling);
+  CHECK(hand.pupil_cell_integration == o.pupil_cell_integration);
+  CHECK(hand.aperture_shape == o.aperture_shape);
+  CHECK(hand.recompute_in_backward == (o.psf_backward == PsfBackward::recompute));
+  // band_width_m = 0 means what optics.band_width_nm = 0 means.
+  auto spec = test::make_spec({500e-9, 530e-9, 560e-9}, {0.5}, 16, 8e-6, 0.1e-3, 5, 5e-6, 0.03, 2);
+  OpticsConfig three;
+  three.wavelengths_nm = {500, 530, 560};
+  CHECK(spec.resolved_band_width_m() == Approx(three.band_width_m()).epsilon(1e-12));
+  spec.wavelengths_m = {550e-9};
+  three.wavelengths_nm = {550};
+  CHECK(spec.resolved_band_width_m() == Approx(three.band_width_m()).epsilon(1e-12));
+  spec.band_width_m = 25e-9;
+  CHECK(spec.resolved_band_width_m() == 25e-9);
+  // Two samples per band need the material's index at each node: refused by name without them.
+  spec = test::make_spec({500e-9}, {0.5}, 16, 8e-6, 0.1e-3, 5, 5e-6, 0.03, 2);
+  spec.spectral_samples = 2;
+  try {
+    optics::PsfSimulator sim(spec);
+    FAIL("a spec without spectral_refractive_index was accepted");
+  } catch (const InputError& e) {
+    CHECK(std::string(e.what()).find("spectral_refractive_index") != std::string::npos);
+  }
 }

@@ -17,8 +17,8 @@ using namespace hsd;
 namespace fs = std::filesystem;
 
 TEST_CASE("export: the TorchScript module reproduces the network, saved, reloaded and in Python", "[export]") {
-  for (const std::string norm : {"batch", "group", "none"}) {
-    INFO("norm " << norm);
+  for (const NormKind norm : {NormKind::batch, NormKind::group, NormKind::none}) {
+    INFO("norm " << choice_name(norm));
     torch::manual_seed(5);
     model::NetOptions o;
     o.bands = 6, o.base_width = 8, o.levels = 2, o.norm = norm, o.depth_min_m = 0.4, o.depth_max_m = 2.5;
@@ -40,7 +40,7 @@ TEST_CASE("export: the TorchScript module reproduces the network, saved, reloade
       CHECK((d - ref.depth_m).abs().max().item<double>() <= 1e-5 * ref.depth_m.abs().max().item<double>());
     };
     check(m);
-    const fs::path dir = fs::temp_directory_path() / ("hsd_test_export_" + norm);
+    const fs::path dir = fs::temp_directory_path() / ("hsd_test_export_" + choice_name(norm));
     fs::create_directories(dir);
     m.save((dir / "reconstructor.pt").string());
     torch::jit::Module loaded = torch::jit::load((dir / "reconstructor.pt").string());
@@ -70,7 +70,7 @@ TEST_CASE("export: the TorchScript module reproduces the network, saved, reloade
 TEST_CASE("export: tiled reconstruction equals the whole frame's", "[export]") {
   torch::manual_seed(8);
   model::NetOptions o;
-  o.bands = 4, o.base_width = 4, o.levels = 2, o.norm = "batch";
+  o.bands = 4, o.base_width = 4, o.levels = 2, o.norm = NormKind::batch;
   model::HsdNet net(o, torch::rand({4, 3}));
   net->eval();
   torch::NoGradGuard ng;
@@ -93,7 +93,7 @@ TEST_CASE("export: tiled reconstruction equals the whole frame's", "[export]") {
 TEST_CASE("export: bfloat16 inference keeps float32 outputs close to float32", "[export]") {
   torch::manual_seed(7);
   model::NetOptions o;
-  o.bands = 5, o.base_width = 8, o.levels = 2, o.norm = "batch";
+  o.bands = 5, o.base_width = 8, o.levels = 2, o.norm = NormKind::batch;
   model::HsdNet net(o, torch::rand({5, 3}));
   net->eval();
   torch::jit::Module m32 = model::export_torchscript(net, {{400e-9, 450e-9, 500e-9, 550e-9, 600e-9}, {}, {}});
@@ -119,7 +119,7 @@ TEST_CASE("export: bfloat16 inference keeps float32 outputs close to float32", "
 TEST_CASE("export: a network with the Wiener pre-inversion exports with its PSFs", "[export][preinverse]") {
   torch::manual_seed(9);
   model::NetOptions o;
-  o.bands = 4, o.base_width = 8, o.levels = 2, o.norm = "group", o.preinverse_layers = 3, o.preinverse_reg = 0.02;
+  o.bands = 4, o.base_width = 8, o.levels = 2, o.norm = NormKind::group, o.preinverse_layers = 3, o.preinverse_reg = 0.02;
   o.residual_preinverse = GENERATE(false, true);  // the cube's residual on the image or on the deconvolutions
   INFO("residual_preinverse " << o.residual_preinverse);
   model::HsdNet net(o, torch::rand({4, 3}));

@@ -103,7 +103,7 @@ TEST_CASE("fisher: the design lowers the CRLB below the Fresnel start, and symme
   CHECK(d.height_m.max().item<double>() < hmax);
   // Free-form: one height offset per sample; also lowers the bound, and maps to a finer grid.
   FisherConfig ff = cfg;
-  ff.basis = "freeform";
+  ff.basis = FisherBasis::freeform;
   ff.steps = 6;
   ff.lr = 0.01;
   const optics::FisherDesign f = optics::design_fisher_doe(g, material, s, start, hmax, ff);
@@ -224,7 +224,7 @@ TEST_CASE("fisher nuisance: unknown position and brightness never lower a bound,
   s.depths_m = {0.3, 0.5, 1.0};  // 0.5 m at 550 nm is the lens's exact focus: ∂μ/∂D = 0 there
   optics::FisherSettings known = s;
   known.nuisance.clear();
-  known.aggregate = "mean";
+  known.aggregate = CrlbAggregate::mean;
   const optics::CrlbReport rn = optics::crlb_report(g, material, fresnel, s);
   const optics::CrlbReport rk = optics::crlb_report(g, material, fresnel, known);
   CHECK((rn.crlb_inv_depth >= rk.crlb_inv_depth * (1 - 1e-9)).all().item<bool>());
@@ -253,6 +253,6 @@ TEST_CASE("fisher nuisance: unknown position and brightness never lower a bound,
   bad.nuisance = {"z"};
   CHECK_THROWS_WITH(optics::crlb_report(g, material, fresnel, bad), Catch::Contains("fisher.nuisance"));
   bad = s;
-  bad.aggregate = "max";
-  CHECK_THROWS_WITH(optics::crlb_report(g, material, fresnel, bad), Catch::Contains("fisher.aggregate"));
+  bad.aggregate_cap = 0.0;
+  CHECK_THROWS_WITH(optics::crlb_report(g, material, fresnel, bad), Catch::Contains("fisher.aggregate_cap"));
 }

@@ -42,7 +42,7 @@ torch::Tensor airy_window(int64_t P, double p, double lambda, double s, double D
 
 TEST_CASE("off-axis PSF at 0 degrees is the on-axis simulator's", "[off_axis][psf]") {
   auto spec = test::make_spec({500e-9, 600e-9}, {0.5, 2.0}, 128, 8e-6, 0.9e-3, 21, 4e-6, 0.05, 3);
-  spec.pupil_cell_integration = "midpoint";
+  spec.pupil_cell_integration = CellIntegration::midpoint;
   spec.mft_rank_tol = 0.0;
   auto gen = at::detail::createCPUGenerator(2);
   const torch::Tensor h = 1e-6 * at::rand({128, 128}, gen, torch::TensorOptions().dtype(torch::kFloat64));
@@ -60,7 +60,7 @@ TEST_CASE("a paraxial lens images an off-axis point at -s tan(theta) with the Ai
   const double lambda = 550e-9, s = 0.05, z0 = 1.0, D = 2.0e-3, p = 2e-6, delta = 8e-6;
   const int64_t N = 256, P = 41;
   auto spec = test::make_spec({lambda}, {z0}, N, delta, D, P, p, s, 4);
-  spec.pupil_cell_integration = "midpoint";
+  spec.pupil_cell_integration = CellIntegration::midpoint;
   spec.mft_rank_tol = 0.0;
   const torch::Tensor h = optics::fresnel_height(N, delta, lambda, 1.5, z0, s);
   const torch::Tensor airy = airy_window(P, p, lambda, s, D);

@@ -14,7 +14,7 @@
 using namespace hsd;
 
 namespace {
-model::HsdNet small_net(torch::ScalarType dtype, const std::string& norm) {
+model::HsdNet small_net(torch::ScalarType dtype, NormKind norm) {
   model::NetOptions o;
   o.bands = 5;
   o.base_width = 8;
@@ -46,8 +46,8 @@ double rel(const torch::Tensor& a, const torch::Tensor& b) {
 }  // namespace
 
 TEST_CASE("precision: a bfloat16 network is the float32 one up to rounding and exactly it in eval mode", "[train][precision]") {
-  for (const std::string norm : {"group", "batch", "none"}) {
-    INFO("norm " << norm);
+  for (const NormKind norm : {NormKind::group, NormKind::batch, NormKind::none}) {
+    INFO("norm " << choice_name(norm));
     model::HsdNet f = small_net(torch::kFloat32, norm), h = small_net(torch::kBFloat16, norm);
     const torch::Tensor x = torch::rand({2, 3, 20, 20});  // 20 px: padded to 24 inside
     // Eval mode first (batch norm's running statistics are then both the initial ones): float32 always.
@@ -107,12 +107,12 @@ TEST_CASE("precision: a bfloat16 network is the float32 one up to rounding and e
 
 TEST_CASE("precision: auto follows the CPU flags and the named choices are kept", "[train][precision]") {
   const torch::Device cpu(torch::kCPU);
-  CHECK(train::training_precision("float32", cpu).dtype == torch::kFloat32);
-  CHECK(train::training_precision("bfloat16", cpu).dtype == torch::kBFloat16);
-  const auto a = train::training_precision("auto", cpu);
+  CHECK(train::training_precision(TrainPrecision::float32, cpu).dtype == torch::kFloat32);
+  CHECK(train::training_precision(TrainPrecision::bfloat16, cpu).dtype == torch::kBFloat16);
+  const auto a = train::training_precision(TrainPrecision::automatic, cpu);
   CHECK(a.dtype == (train::cpu_has_native_bf16() ? torch::kBFloat16 : torch::kFloat32));
   CHECK_THAT(a.why, Catch::StartsWith(a.dtype == torch::kBFloat16 ? "bfloat16 (auto" : "float32 (auto"));
-  CHECK(train::training_precision("auto", torch::Device("cuda:0")).dtype == torch::kFloat32);
+  CHECK(train::training_precision(TrainPrecision::automatic, torch::Device("cuda:0")).dtype == torch::kFloat32);
 }
 
 TEST_CASE("precision: bfloat16 training steps keep float32 weights and Adam state and lower the loss", "[train][precision]") {

@@ -96,7 +96,7 @@ TEST_CASE("preinverse: the residual base is the layers' mean deconvolution, upsa
   // A network with the residual on the deconvolutions and its heads at the
   // baselines answers with exactly this baseline; without the pre-inversion it refuses.
   model::NetOptions o;
-  o.bands = 4, o.base_width = 4, o.levels = 2, o.norm = "group", o.preinverse_layers = 2, o.preinverse_reg = 0.01;
+  o.bands = 4, o.base_width = 4, o.levels = 2, o.norm = NormKind::group, o.preinverse_layers = 2, o.preinverse_reg = 0.01;
   o.residual_preinverse = true;
   model::HsdNet net(o, w);
   const torch::Tensor psf = gaussian_psfs({1.0, 2.5}, 3, 9, torch::kFloat32);
@@ -177,7 +177,7 @@ TEST_CASE("preinverse: gradients in the image and the PSFs match central differe
 TEST_CASE("preinverse: the network takes the deconvolutions beside the image", "[preinverse]") {
   torch::manual_seed(4);
   model::NetOptions o;
-  o.bands = 5, o.base_width = 8, o.levels = 2, o.norm = "group", o.preinverse_layers = 2, o.preinverse_reg = 0.01;
+  o.bands = 5, o.base_width = 8, o.levels = 2, o.norm = NormKind::group, o.preinverse_layers = 2, o.preinverse_reg = 0.01;
   model::HsdNet net(o, torch::rand({5, 3}));
   net->eval();
   const torch::Tensor x = torch::rand({1, 3, 20, 20});
@@ -195,7 +195,7 @@ TEST_CASE("preinverse: the network takes the deconvolutions beside the image", "
 
 TEST_CASE("preinverse: training with it lowers the loss, reaches the DOE, profiles exactly and resumes", "[train][preinverse]") {
   const Config cfg = tiny_wiener(GENERATE(std::string("image"), std::string("preinverse")));
-  INFO("model.residual " << cfg.model.residual);
+  INFO("model.residual " << choice_name(cfg.model.residual));
   train::Trainer a(cfg), b(cfg);
   const int64_t L = int64_t(a.psf().spec().wavelengths_m.size()), Z = int64_t(a.psf().spec().depths_m.size());
   REQUIRE(a.net()->options().preinverse_layers == Z);

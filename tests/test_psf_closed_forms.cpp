@@ -46,12 +46,12 @@ TEST_CASE("circular aperture: edge cells get their covered fraction, exactly as 
   // even and odd grids; apertures filling, overfilling, inside one cell, tangent to cell edges
   for (const auto& [n, d] : std::vector<std::pair<int64_t, double>>{
            {64, 64 * pitch}, {63, 40.3 * pitch}, {32, 50 * pitch}, {16, 0.7 * pitch}, {17, 0.3 * pitch}, {40, 20 * pitch}}) {
-    const torch::Tensor a = optics::aperture_transmission(n, pitch, d, "circle");
+    const torch::Tensor a = optics::aperture_transmission(n, pitch, d, ApertureShape::circle);
     INFO("N = " << n << ", D = " << d / pitch << " pitches");
     CHECK(torch::equal(a, full_grid(n, pitch, d)));
   }
   // The area is the disc's to the sub-sampling's accuracy.
-  const torch::Tensor a = optics::aperture_transmission(256, pitch, 200 * pitch, "circle");
+  const torch::Tensor a = optics::aperture_transmission(256, pitch, 200 * pitch, ApertureShape::circle);
   CHECK(a.sum().item<double>() == Approx(M_PI * 100.0 * 100.0).epsilon(1e-3));
   CHECK(a.min().item<double>() == 0.0);
   CHECK(a.max().item<double>() == 1.0);
@@ -63,7 +63,7 @@ TEST_CASE("in-focus Fresnel DOE gives the Airy pattern", "[psf][closed-form]") {
   auto spec = test::make_spec({lambda}, {z0}, N, delta, D, P, p, s, 4);
   // Cell-centre sampling is exact for an ideal, continuous lens (its total phase
   // is constant); the pixelated element (sinc cells) is checked below.
-  spec.pupil_cell_integration = "midpoint";
+  spec.pupil_cell_integration = CellIntegration::midpoint;
   const optics::PsfSimulator sim(spec);
   const torch::Tensor h = optics::fresnel_height(N, delta, lambda, 1.5, z0, s);
   const auto out = sim.compute(h);
@@ -90,20 +90,20 @@ TEST_CASE("in-focus Fresnel DOE gives the Airy pattern", "[psf][closed-form]") {
   // Airy · [Σ A sinc sinc / Σ A]² (the staircase lens's efficiency).
   {
     auto cells = spec;
-    cells.pupil_cell_integration = "sinc";
+    cells.pupil_cell_integration = CellIntegration::sinc;
     const auto o = optics::PsfSimulator(cells).compute(h);
     const double peak = (o.psf[0][0] * o.energy_in_window[0][0])[P / 2][P / 2].item<double>();
     const torch::Tensor x = optics::centred_coordinates(N, delta);
     const double slope = 2 * M_PI / lambda * (1.0 / z0 + 1.0 / s);
     const torch::Tensor u = x * slope * delta / 2;
     const torch::Tensor sx = torch::sin(u) / u;
-    const torch::Tensor A = optics::aperture_transmission(N, delta, D, "circle");
+    const torch::Tensor A = optics::aperture_transmission(N, delta, D, ApertureShape::circle);
     const double eff = ((A * torch::outer(sx, sx)).sum() / A.sum()).item<double>();
     const double predicted = ia[P / 2][P / 2] * eff * eff;
     INFO("pixelated lens: peak " << peak << ", predicted " << predicted << " (cell efficiency " << eff << ")");
     CHECK(eff < 0.97);  // a visible effect at this pitch
     CHECK(peak == Approx(predicted).epsilon(0.01));
-    cells.pupil_cell_integration = "sinc_cross";  // the cross term vanishes on the axis
+    cells.pupil_cell_integration = CellIntegration::sinc_cross;  // the cross term vanishes on the axis
     const auto oc = optics::PsfSimulator(cells).compute(h);
     CHECK((oc.psf[0][0] * oc.energy_in_window[0][0])[P / 2][P / 2].item<double>() == Approx(predicted).epsilon(0.01));
   }
@@ -189,12 +189,12 @@ TEST_CASE("Parseval: a window holding a whole period gets all the light", "[psf]
   const int64_t N = 32, P = 33;
   const double p = lambda * s / delta / double(P);
   const torch::Tensor h = optics::random_height(N, 2e-6, 7);
-  for (const char* shape : {"circle", "square"}) {
+  for (const ApertureShape shape : {ApertureShape::circle, ApertureShape::square}) {
     auto spec = test::make_spec({lambda}, {0.3, 1.0, 1e6}, N, delta, 0.3e-3, P, p, s, 8);
     spec.aperture_shape = shape;
-    spec.pupil_cell_integration = "midpoint";  // Parseval of the discrete transform
+    spec.pupil_cell_integration = CellIntegration::midpoint;  // Parseval of the discrete transform
     const auto e = optics::PsfSimulator(spec).compute(h).energy_in_window;
-    INFO(shape << ": energy in window " << e);
+    INFO(choice_name(shape) << ": energy in window " << e);
     CHECK(((e - 1.0).abs().max()).item<double>() < 1e-9);
     auto spec32 = spec;
     spec32.real_dtype = torch::kFloat32;

@@ -78,7 +78,7 @@ TEST_CASE("a 3-pixel window and an aperture that fills the grid are fine", "[psf
   const auto out = optics::PsfSimulator(spec).compute(optics::random_height(N, 1e-6, 1));
   CHECK(out.psf.sizes() == torch::IntArrayRef({2, 1, 3, 3}));
   CHECK(finite_and_normalised(out));
-  spec.aperture_shape = "square";
+  spec.aperture_shape = ApertureShape::square;
   CHECK(finite_and_normalised(optics::PsfSimulator(spec).compute(optics::random_height(N, 1e-6, 2))));
 }
 

@@ -126,7 +126,7 @@ TEST_CASE("scene fisher: the bound per depth is sqrt of the inverse information,
   CHECK((rn.crlb_inv_depth - r.crlb_inv_depth).min().item<double>() > -1e-12);
 
   // Gradient of the aggregate along a random height direction against central differences.
-  s.aggregate = "mean";
+  s.aggregate = CrlbAggregate::mean;
   const torch::Tensor dir = torch::randn({48, 48}, torch::kFloat64) * 20e-9;
   const torch::Tensor hv = h.clone().requires_grad_(true);
   const optics::CrlbReport rg = optics::scene_crlb_report(g, material, hv, s, sc);

@@ -11,7 +11,7 @@ TEST_CASE("noise: read noise has the configured sigma and is reproducible for a 
   const torch::Tensor J = torch::full({2, 3, 128, 128}, 0.5, torch::kFloat64);
   NoiseModel m;
   m.std_max = 0.02;
-  m.std_min = -1.0;  // fixed σ
+  CHECK(m.std_min < 0.0);  // the default: a fixed σ = std_max, as sensor.noise_std_min
   m.saturation = 0.0;
   auto g1 = at::detail::createCPUGenerator(7), g2 = at::detail::createCPUGenerator(7);
   const torch::Tensor a = apply_sensor_noise(J, m, g1), b = apply_sensor_noise(J, m, g2);

@@ -80,10 +80,10 @@ TEST_CASE("train: the loss terms and the schedule", "[train]") {
   const auto m = train::reconstruction_loss(I + 0.5, I, Dp, D, {1.0, 0.1, 0.01, true});
   CHECK(m.depth.item<double>() == Approx(1.0 / 3.0));
   CHECK(m.tv.item<double>() == Approx(t.tv.item<double>()));  // the TV term stays on inverse depth
-  CHECK(train::lr_factor(0, 100, 10, "cosine", 0.1) == Approx(0.1));
-  CHECK(train::lr_factor(9, 100, 10, "cosine", 0.1) == Approx(1.0));
-  CHECK(train::lr_factor(99, 100, 10, "cosine", 0.1) == Approx(0.1));
-  CHECK(train::lr_factor(50, 100, 0, "none", 0.1) == 1.0);
+  CHECK(train::lr_factor(0, 100, 10, LrDecay::cosine, 0.1) == Approx(0.1));
+  CHECK(train::lr_factor(9, 100, 10, LrDecay::cosine, 0.1) == Approx(1.0));
+  CHECK(train::lr_factor(99, 100, 10, LrDecay::cosine, 0.1) == Approx(0.1));
+  CHECK(train::lr_factor(50, 100, 0, LrDecay::none, 0.1) == 1.0);
 }
 
 TEST_CASE("train: a network handles sizes that are not multiples of its poolings", "[train]") {

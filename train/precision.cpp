@@ -21,9 +21,9 @@ bool cpu_has_native_bf16() {
   return has;
 }
 
-TrainingPrecision training_precision(const std::string& precision, torch::Device device) {
-  if (precision == "float32") return {torch::kFloat32, "float32 (train.precision)"};
-  if (precision == "bfloat16") {
+TrainingPrecision training_precision(TrainPrecision precision, torch::Device device) {
+  if (precision == TrainPrecision::float32) return {torch::kFloat32, "float32 (train.precision)"};
+  if (precision == TrainPrecision::bfloat16) {
     if (!device.is_cpu()) return {torch::kBFloat16, "bfloat16 (train.precision)"};
     return {torch::kBFloat16, cpu_has_native_bf16() ? "bfloat16 (train.precision; the CPU has native bfloat16)"
                                                     : "bfloat16 (train.precision; the CPU has no native bfloat16: emulated, likely slower than float32)"};

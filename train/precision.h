@@ -11,6 +11,8 @@
 
 #include <torch/types.h>
 
+#include "common/choices.h"
+
 namespace hsd::train {
 
 // True on a Linux CPU whose flags (/proc/cpuinfo) include avx512_bf16 or amx_bf16.
@@ -21,9 +23,8 @@ struct TrainingPrecision {
   std::string why;                            // one line for the log, e.g. "bfloat16 (auto: the CPU has AVX512-BF16)"
 };
 
-// precision: "float32" | "bfloat16" | "auto" (validated by the config).
-// "auto" is bfloat16 on a CPU device with native bfloat16, float32 otherwise
+// precision: train.precision. "auto" is bfloat16 on a CPU device with native bfloat16, float32 otherwise
 // (CUDA included: its mixed precision is not measured here).
-TrainingPrecision training_precision(const std::string& precision, torch::Device device);
+TrainingPrecision training_precision(TrainPrecision precision, torch::Device device);
 
 }  // namespace hsd::train

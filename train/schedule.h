@@ -5,9 +5,11 @@
 #include <cstdint>
 #include <string>
 
+#include "common/choices.h"
+
 namespace hsd::train {
 
 // Factor in (0, 1] multiplying the base rate at `step` (0-based) of `total` steps.
-double lr_factor(int64_t step, int64_t total, int64_t warmup_steps, const std::string& decay, double min_ratio);
+double lr_factor(int64_t step, int64_t total, int64_t warmup_steps, LrDecay decay, double min_ratio);
 
 }  // namespace hsd::train

@@ -20,11 +20,13 @@
 #include "data/image_io.h"
 #include "data/preview.h"
 #include "data/synthetic_dataset.h"
+#include "model/net_options.h"
 #include "model/spectral_upsampling.h"
 #include "model/wiener_preinverse.h"
 #include "optics/fabrication_error.h"
 #include "optics/psf_source.h"
 #include "train/baselines.h"
+#include "train/checkpoint.h"
 #include "train/metrics_log.h"
 #include "train/schedule.h"
 #include "train/shared_psf.h"
@@ -60,25 +62,6 @@ torch::Tensor with_fabrication_noise(const torch::Tensor& h, const Config& cfg, 
 }
 constexpr uint64_t kValSeed = 0x5EEDULL;
 
-model::NetOptions net_options(const Config& cfg) {
-  model::NetOptions o;
-  o.bands = int64_t(cfg.optics.wavelengths_nm.size());
-  o.base_width = cfg.model.base_width;
-  o.levels = cfg.model.levels;
-  o.norm = cfg.model.norm;
-  const auto& d = cfg.optics.depths_m;
-  const double near = std::min(*std::min_element(d.begin(), d.end()), cfg.data.generator.depth_min_m);
-  const double far = std::max(*std::max_element(d.begin(), d.end()), cfg.data.generator.depth_max_m);
-  // model.depth_margin widens the sigmoid's range in inverse depth at both ends
-  // (the far end kept at >= half its inverse depth, so it stays finite).
-  const double span = 1.0 / near - 1.0 / far, m = cfg.model.depth_margin * span;
-  o.depth_min_m = 1.0 / (1.0 / near + m);
-  o.depth_max_m = 1.0 / std::max(1.0 / far - m, 0.5 / far);
-  o.preinverse_layers = cfg.model.preinverse == "wiener" ? int64_t(d.size()) : 0;
-  o.preinverse_reg = cfg.model.preinverse_reg;
-  o.residual_preinverse = cfg.model.residual == "preinverse";
-  return o;
-}
 
 Batch stack(const std::vector<data::Patch>& patches, torch::Device device) {
   std::vector<torch::Tensor> r, d;
@@ -136,7 +119,7 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
     std::lock_guard<std::mutex> lock(global_rng);
     torch::manual_seed(int64_t(cfg.seed));
     const torch::Tensor w = model::spectral_upsampling_weights(sensor_.omega.cpu());
-    model::NetOptions o = net_options(cfg);
+    model::NetOptions o = model::net_options(cfg);
     precision_ = training_precision(cfg.train.precision, device_);
     o.train_dtype = precision_.dtype;
     net_ = model::HsdNet(o, w);
@@ -158,7 +141,7 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
   margin_ = render_margin_px(cfg);
   net_->to(device_);
   refresh_preinverse();
-  weights_ = {cfg.train.loss_alpha, cfg.train.loss_beta, cfg.train.loss_gamma, cfg.train.depth_loss == "metric_l1"};
+  weights_ = {cfg.train.loss_alpha, cfg.train.loss_beta, cfg.train.loss_gamma, cfg.train.depth_loss == DepthLoss::metric_l1};
   std::vector<torch::optim::OptimizerParamGroup> groups;
   groups.emplace_back(net_->parameters(), std::make_unique<torch::optim::AdamOptions>(cfg.train.lr_net));
   if (!doe_trained_) {
@@ -244,7 +227,7 @@ void Trainer::attach_data() {
   train_scenes_ = data::load_split(root, "train", bands, bw, cfg_.data.loader_threads);
   baseline_inv_depth_ = median_inverse_depth(train_scenes_);
   // A checkpoint, if resumed, replaces the heads; train.init_checkpoint's are kept.
-  if (cfg_.model.head_init == "baselines" && !network_started_) net_->start_at_baselines(baseline_inv_depth_);
+  if (cfg_.model.head_init == HeadInit::baselines && !network_started_) net_->start_at_baselines(baseline_inv_depth_);
   const data::Manifest m = data::read_manifest(root);
   bank_ = std::make_unique<data::IlluminantBank>(cfg_.data.illuminants, bands, bw);
   const int64_t rendered = cfg_.data.patch_size_px + 2 * margin_;
@@ -489,86 +472,12 @@ ValStats Trainer::validate() {
 }
 
 void Trainer::save_checkpoint(const std::string& path, int64_t next_step) const {
-  TensorDict d;
-  d["step"] = torch::tensor(next_step, torch::kInt64);
-  d["doe.raw"] = doe_.parameter().detach().cpu();
-  d["height_map_m"] = doe_.height().detach().to(torch::kFloat32).cpu();
-  d["doe_pitch_m"] = torch::tensor(doe_.pitch_m(), torch::kFloat64);
-  if (std::isfinite(baseline_inv_depth_)) d["baseline.inv_depth_per_m"] = torch::tensor(baseline_inv_depth_, torch::kFloat64);
-  for (const auto& p : net_->named_parameters()) d["net." + p.key()] = p.value().detach().cpu();
-  for (const auto& b : net_->named_buffers()) d["net." + b.key()] = b.value().detach().cpu();
-  const auto& groups = opt_->param_groups();
-  const auto& state = opt_->state();
-  for (size_t g = 0; g < groups.size(); ++g)
-    for (size_t i = 0; i < groups[g].params().size(); ++i) {
-      const auto it = state.find(c10::guts::to_string(groups[g].params()[i].unsafeGetTensorImpl()));
-      if (it == state.end()) continue;
-      const auto& s = static_cast<const torch::optim::AdamParamState&>(*it->second);
-      const std::string k = "adam." + std::to_string(g) + "." + std::to_string(i) + ".";
-      d[k + "exp_avg"] = s.exp_avg().cpu();
-      d[k + "exp_avg_sq"] = s.exp_avg_sq().cpu();
-      d[k + "step"] = torch::tensor(s.step(), torch::kInt64);
-    }
-  save_tensor_dict(path, d);
+  write_checkpoint(path, doe_, net_, *opt_, baseline_inv_depth_, next_step);
 }
 
 int64_t Trainer::load_checkpoint(const std::string& path) {
-  // Every entry is checked (present, shape, finite) before anything is
-  // replaced: a doctored or damaged checkpoint is exit 2 naming the file and
-  // the entry, never a crash or a NaN model.
-  const TensorDict d = load_tensor_dict(path);
-  torch::NoGradGuard no_grad;
-  auto entry = [&](const std::string& key, c10::IntArrayRef shape) {
-    const torch::Tensor t = dict_get(d, key, path);
-    if (t.sizes() != shape)
-      input_error(path, key + " is " + c10::str(t.sizes()) + " but the config builds " + c10::str(shape) +
-                            " (a checkpoint of another config?)");
-    const std::string bad = first_nonfinite(t);
-    if (!bad.empty()) input_error(path, key + " holds " + bad);
-    return t;
-  };
-  auto scalar = [&](const std::string& key) {
-    const torch::Tensor t = dict_get(d, key, path);
-    if (t.numel() != 1) input_error(path, key + " must be one number, is " + c10::str(t.sizes()));
-    const double v = t.to(torch::kFloat64).item<double>();
-    if (!std::isfinite(v)) input_error(path, key + " is not finite");
-    return v;
-  };
-  auto count = [&](const std::string& key) {
-    const double v = scalar(key);
-    if (!(v >= 0 && v == std::floor(v) && v < 9e15)) input_error(path, key + " must be a whole number >= 0, is " + c10::str(v));
-    return int64_t(v);
-  };
-  std::vector<std::pair<torch::Tensor, torch::Tensor>> copies;  // (destination, checked source)
-  copies.emplace_back(doe_.parameter(), entry("doe.raw", doe_.parameter().sizes()));
-  for (auto& p : net_->named_parameters()) copies.emplace_back(p.value(), entry("net." + p.key(), p.value().sizes()));
-  for (auto& b : net_->named_buffers()) copies.emplace_back(b.value(), entry("net." + b.key(), b.value().sizes()));
-  auto& groups = opt_->param_groups();
-  std::vector<std::pair<torch::Tensor, std::unique_ptr<torch::optim::AdamParamState>>> adam;
-  for (size_t g = 0; g < groups.size(); ++g)
-    for (size_t i = 0; i < groups[g].params().size(); ++i) {
-      const std::string k = "adam." + std::to_string(g) + "." + std::to_string(i) + ".";
-      if (!d.count(k + "exp_avg") && !d.count(k + "exp_avg_sq") && !d.count(k + "step")) continue;  // no step taken yet
-      const torch::Tensor& p = groups[g].params()[i];
-      auto st = std::make_unique<torch::optim::AdamParamState>();
-      st->exp_avg(entry(k + "exp_avg", p.sizes()).to(p.device(), p.scalar_type()).clone());
-      st->exp_avg_sq(entry(k + "exp_avg_sq", p.sizes()).to(p.device(), p.scalar_type()).clone());
-      if ((st->exp_avg_sq() < 0).any().item<bool>()) input_error(path, k + "exp_avg_sq holds negative values");
-      st->step(count(k + "step"));
-      adam.emplace_back(p, std::move(st));
-    }
-  double baseline = std::numeric_limits<double>::quiet_NaN();
-  if (d.count("baseline.inv_depth_per_m")) {
-    baseline = scalar("baseline.inv_depth_per_m");
-    if (!(baseline > 0)) input_error(path, "baseline.inv_depth_per_m must be > 0");
-  }
-  const int64_t next = count("step");
-  // All checked: replace the state.
-  for (auto& [dst, src] : copies) dst.copy_(src.to(dst.device(), dst.scalar_type()));
-  auto& state = opt_->state();
-  state.clear();
-  for (auto& [p, st] : adam) state[c10::guts::to_string(p.unsafeGetTensorImpl())] = std::move(st);
-  if (std::isfinite(baseline)) baseline_inv_depth_ = baseline;
+  TrainingState state{doe_, net_, *opt_, baseline_inv_depth_};
+  const int64_t next = read_checkpoint(path, state);
   if (group_) {  // every rank read a checkpoint of the same step, then all take rank 0's values
     const auto all = group_->gather(double(next), "the resumed step");
     for (int64_t r = 0; r < world_; ++r)
@@ -625,21 +534,7 @@ void Trainer::write_val_pictures(const std::string& dir, int64_t step) {
 
 void Trainer::start_from(const std::string& path) {
   if (!std::filesystem::is_regular_file(path)) input_error(path, "no such checkpoint file (train.init_checkpoint)");
-  const TensorDict d = load_tensor_dict(path);
-  torch::NoGradGuard no_grad;
-  std::vector<std::pair<torch::Tensor, torch::Tensor>> copies;  // (destination, checked source): all checked first
-  auto add = [&](const std::string& name, torch::Tensor dst) {
-    const torch::Tensor t = dict_get(d, "net." + name, path);
-    if (t.sizes() != dst.sizes())
-      input_error(path, "net." + name + " is " + c10::str(t.sizes()) + " but the config builds " + c10::str(dst.sizes()) +
-                            " (train.init_checkpoint must come from a config with the same network)");
-    const std::string bad = first_nonfinite(t);
-    if (!bad.empty()) input_error(path, "net." + name + " holds " + bad);
-    copies.emplace_back(dst, t);
-  };
-  for (auto& p : net_->named_parameters()) add(p.key(), p.value());
-  for (auto& b : net_->named_buffers()) add(b.key(), b.value());
-  for (auto& [dst, src] : copies) dst.copy_(src.to(dst.device(), dst.scalar_type()));
+  read_network_weights(path, net_);
   network_started_ = true;
   log::info("network weights from " + path + " (train.init_checkpoint); DOE, optimizer and step start afresh");
 }

@@ -151,7 +151,7 @@ int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out) {
   {
     torch::NoGradGuard ng;
     optics::PsfSpec mid = ref_spec;
-    mid.pupil_cell_integration = "midpoint";
+    mid.pupil_cell_integration = CellIntegration::midpoint;
     const std::vector<int64_t> ends{0, L - 1};
     const torch::Tensor a = optics::PsfSimulator(mid).compute(h0, {}, {}, ends).psf;
     const torch::Tensor b = ref_psf.index_select(0, torch::tensor(ends, torch::kInt64));
@@ -190,9 +190,9 @@ int bench_accuracy(Config cfg, const AppArgs& args, BenchOutput& out) {
     add("depth_basis", "depth_basis (training's kernels)", "joint over depths",
         [](optics::PsfSpec& s) { s.depth_basis = true; });
   add("pupil_x2", "pupil_oversampling", "2", [](optics::PsfSpec& s) { s.pupil_oversampling = 2; });
-  for (const char* rule : {"midpoint", "sinc", "sinc_cross"})
+  for (const CellIntegration rule : {CellIntegration::midpoint, CellIntegration::sinc, CellIntegration::sinc_cross})
     if (base.pupil_cell_integration != rule)
-      add(std::string("cell_") + rule, "pupil_cell_integration", rule,
+      add("cell_" + choice_name(rule), "pupil_cell_integration", choice_name(rule),
           [rule](optics::PsfSpec& s) { s.pupil_cell_integration = rule; });
   for (int k : {1, 2, 3})
     if (k != base.spectral_samples)

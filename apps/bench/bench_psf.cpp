@@ -97,7 +97,7 @@ int bench_psf(const Config& cfg, const AppArgs& args, BenchOutput& out) {
                   {"depths", spec.depths_m.size()},
                   {"psf_size", spec.psf_size},
                   {"doe_samples", spec.doe_samples},
-                  {"precision", cfg.optics.precision},
+                  {"precision", choice_name(cfg.optics.precision)},
                   {"doe_init", cfg.optics.doe.init},
                   {"pixel_nodes", nodes},
                   {"rss_at_start_mib", rss_start},
@@ -116,7 +116,7 @@ int bench_psf(const Config& cfg, const AppArgs& args, BenchOutput& out) {
   char buf[512];
   std::string text = "PSF stack: " + std::to_string(spec.wavelengths_m.size()) + " bands x " +
                      std::to_string(spec.depths_m.size()) + " depths, " + std::to_string(spec.psf_size) + " px window, " +
-                     std::to_string(spec.doe_samples) + "^2 DOE samples, " + cfg.optics.precision + ", threads " +
+                     std::to_string(spec.doe_samples) + "^2 DOE samples, " + choice_name(cfg.optics.precision) + ", threads " +
                      std::to_string(torch::get_num_threads()) + "\n";
   std::snprintf(buf, sizeof buf, "process RSS before the runs: %.0f MiB (LibTorch and data); peak RSS below includes it\n", rss_start);
   text += buf;

@@ -12,6 +12,7 @@
 #include "common/error.h"
 #include "common/log.h"
 #include "model/spectral_upsampling.h"
+#include "model/net_options.h"
 #include "model/tiled_inference.h"
 #include "model/torchscript_export.h"
 #include "optics/spectrum.h"
@@ -23,8 +24,10 @@ int bench_reconstruct(Config cfg, const AppArgs& args, BenchOutput& out) {
   if (size < 64 || size > 8192) input_error("--size", "must be in [64, 8192]");
   const auto bands = cfg.optics.wavelengths_m();
   const torch::Tensor omega = optics::camera_response(cfg.sensor.camera, bands, cfg.optics.band_width_m());
-  model::NetOptions o;
-  o.bands = int64_t(bands.size()), o.base_width = cfg.model.base_width, o.levels = cfg.model.levels, o.norm = cfg.model.norm;
+  // The config's network without the Wiener pre-inversion (it needs a DOE's
+  // PSFs; the benchmark times the reconstructor alone).
+  model::NetOptions o = model::net_options(cfg);
+  o.preinverse_layers = 0, o.residual_preinverse = false;
   torch::manual_seed(int64_t(cfg.seed));
   model::HsdNet net(o, model::spectral_upsampling_weights(omega));
   net->eval();

@@ -51,7 +51,7 @@ int bench_train(Config cfg, const AppArgs& args, BenchOutput& out) {
   std::vector<Config> cfgs{cfg, cfg};
   std::vector<std::unique_ptr<train::Trainer>> trainers;
   trainers.push_back(std::make_unique<train::Trainer>(cfgs[0]));
-  cfgs[1].train.precision = trainers[0]->precision().dtype == torch::kBFloat16 ? "float32" : "bfloat16";
+  cfgs[1].train.precision = trainers[0]->precision().dtype == torch::kBFloat16 ? TrainPrecision::float32 : TrainPrecision::bfloat16;
   std::vector<Row> rows(2);
   std::vector<int64_t> k(2, 0);
   log::info("peak memory of a step (" + std::string(trainers[0]->precision().dtype == torch::kBFloat16 ? "bfloat16" : "float32") + ") ...");

@@ -1,0 +1,27 @@
+#include "model/net_options.h"
+
+#include <algorithm>
+
+namespace hsd::model {
+
+NetOptions net_options(const Config& cfg) {
+  NetOptions o;
+  o.bands = int64_t(cfg.optics.wavelengths_nm.size());
+  o.base_width = cfg.model.base_width;
+  o.levels = cfg.model.levels;
+  o.norm = cfg.model.norm;
+  const auto& d = cfg.optics.depths_m;
+  const double near = std::min(*std::min_element(d.begin(), d.end()), cfg.data.generator.depth_min_m);
+  const double far = std::max(*std::max_element(d.begin(), d.end()), cfg.data.generator.depth_max_m);
+  // model.depth_margin widens the sigmoid's range in inverse depth at both ends
+  // (the far end kept at >= half its inverse depth, so it stays finite).
+  const double span = 1.0 / near - 1.0 / far, m = cfg.model.depth_margin * span;
+  o.depth_min_m = 1.0 / (1.0 / near + m);
+  o.depth_max_m = 1.0 / std::max(1.0 / far - m, 0.5 / far);
+  o.preinverse_layers = cfg.model.preinverse == Preinverse::wiener ? int64_t(d.size()) : 0;
+  o.preinverse_reg = cfg.model.preinverse_reg;
+  o.residual_preinverse = cfg.model.residual == ResidualBase::preinverse;
+  return o;
+}
+
+}  // namespace hsd::model

@@ -1,0 +1,51 @@
+// The model library's own pieces: the network a config builds (net_options)
+// and the typed normalisation choice. The network's numerics are tested where
+// they are used: test_export (TorchScript = C++), test_precision (bfloat16),
+// test_preinverse (Wiener input), test_baselines (heads at the baselines).
+#include <catch2/catch.hpp>
+
+#include "common/config.h"
+#include "common/error.h"
+#include "helpers.h"
+#include "model/net_options.h"
+
+using namespace hsd;
+
+TEST_CASE("net_options: the depth head spans the layers and the scenes, widened by model.depth_margin in inverse depth", "[model]") {
+  Config cfg = load_config(test::source_path("configs/base.json"), {"model.depth_margin=0"});
+  const double near = std::min(cfg.optics.depths_m.front(), cfg.data.generator.depth_min_m);
+  const double far = std::max(cfg.optics.depths_m.back(), cfg.data.generator.depth_max_m);
+  model::NetOptions o = model::net_options(cfg);
+  CHECK(o.bands == int64_t(cfg.optics.wavelengths_nm.size()));
+  CHECK(o.depth_min_m == Approx(near));
+  CHECK(o.depth_max_m == Approx(far));
+  CHECK(o.preinverse_layers == 0);
+  CHECK(o.norm == cfg.model.norm);
+  // A margin m widens [1/far, 1/near] by m·span at each end (scenes to 2 m,
+  // so the far end stays clear of its floor at half its inverse depth).
+  cfg = load_config(test::source_path("configs/base.json"), {"model.depth_margin=0.1", "data.generator.depth_max_m=2.0", "model.preinverse=wiener",
+                                                             "model.residual=preinverse", "model.norm=group"});
+  o = model::net_options(cfg);
+  const double far2 = 2.0, span = 1.0 / near - 1.0 / far2;
+  CHECK(1.0 / o.depth_min_m == Approx(1.0 / near + 0.1 * span));
+  CHECK(1.0 / o.depth_max_m == Approx(1.0 / far2 - 0.1 * span));
+  CHECK(o.preinverse_layers == int64_t(cfg.optics.depths_m.size()));
+  CHECK(o.residual_preinverse);
+  CHECK(o.norm == NormKind::group);
+  // A margin that would pass infinity keeps the far end at half its inverse depth.
+  // A margin that would pass infinity keeps the far end at half its inverse depth.
+  cfg = load_config(test::source_path("configs/base.json"), {"model.depth_margin=0.5"});
+  CHECK(model::net_options(cfg).depth_max_m == Approx(2.0 * far));
+}
+
+TEST_CASE("model.norm is parsed once into its type, and any other word is refused naming the key", "[model][config]") {
+  for (const NormKind k : {NormKind::batch, NormKind::group, NormKind::none})
+    CHECK(load_config(test::source_path("configs/base.json"), {"model.norm=" + choice_name(k)}).model.norm == k);
+  try {
+    load_config(test::source_path("configs/base.json"), {"model.norm=layer"});
+    FAIL("model.norm=layer was accepted");
+  } catch (const InputError& e) {
+    CHECK(std::string(e.what()).find("model.norm") != std::string::npos);
+    CHECK(std::string(e.what()).find("\"batch\", \"group\" or \"none\"") != std::string::npos);
+  }
+}

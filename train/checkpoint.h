@@ -1,0 +1,37 @@
+// Training checkpoints (docs/interfaces.md): a torch pickle dict of the next
+// step, the DOE ("doe.raw", plus "height_map_m" and "doe_pitch_m" so the file
+// serves as a height-map file), the network ("net.<name>": parameters and
+// buffers), Adam's moments per parameter ("adam.<group>.<index>.exp_avg",
+// "exp_avg_sq", "step") and the constant-depth baseline's inverse depth
+// ("baseline.inv_depth_per_m", when known). Reading checks every entry
+// (present, shape, finite) before anything is replaced: a damaged or foreign
+// file is an InputError naming it and the entry, never a crash or a NaN model.
+#pragma once
+#include <cstdint>
+#include <string>
+
+#include <torch/torch.h>
+
+#include "model/unet.h"
+#include "optics/doe.h"
+
+namespace hsd::train {
+
+// What a checkpoint restores: references to the trainer's pieces.
+struct TrainingState {
+  optics::Doe& doe;
+  model::HsdNet& net;
+  torch::optim::Adam& adam;
+  double& baseline_inv_depth;  // 1/m; NaN when unknown
+};
+
+// Writes the state and next_step to path, atomically.
+void write_checkpoint(const std::string& path, const optics::Doe& doe, const model::HsdNet& net, const torch::optim::Adam& adam,
+                      double baseline_inv_depth, int64_t next_step);
+// Replaces the state by the file's (all entries checked first); returns its next step.
+int64_t read_checkpoint(const std::string& path, TrainingState& s);
+// The network's parameters and buffers alone (train.init_checkpoint): InputError
+// naming the file for a missing, mismatched or non-finite entry; nothing replaced then.
+void read_network_weights(const std::string& path, model::HsdNet& net);
+
+}  // namespace hsd::train
