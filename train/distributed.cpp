@@ -274,7 +274,6 @@ void DataParallel::average_gradients_(const std::vector<torch::Tensor>& params, 
   bucketed_(grads, false, 1.0 / double(world_size()), "averaging " + what);
 }
 
-void DataParallel::set_bucket_mib(double mib) { impl_->cfg.bucket_mib = mib; }
 
 void DataParallel::barrier(const std::string& what) {
   impl_->usable("waiting for all ranks " + what);

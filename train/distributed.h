@@ -76,7 +76,6 @@ class DataParallel final : public model::ReplicaGroup {
   // in flat buckets of about distributed.bucket_mib (one collective each,
   // issued together). A parameter without a gradient counts as zero.
   void average_gradients_(const std::vector<torch::Tensor>& params, const std::string& what);
-  void set_bucket_mib(double mib);  // benchmarks: tiny buckets = one collective per tensor
   // Rank 0's `text` under `key`, on every rank (rank 0 publishes it, the others
   // fetch it): e.g. the resolved config, which must agree across ranks.
   std::string from_rank0(const std::string& key, const std::string& text);

@@ -18,6 +18,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <thread>
 
 #include <torch/torch.h>
@@ -70,14 +71,20 @@ int run_child(Config cfg, const AppArgs& args, int64_t batch, int64_t patch, int
     params.push_back(t.doe().parameter());
     double mib = 0;
     for (const auto& p : params) mib += double(p.numel() * p.element_size()) / 1048576.0;
-    auto timed = [&](double bucket_mib) {
-      group->set_bucket_mib(bucket_mib);
+    auto timed = [&](const std::function<void()>& average) {
       const int64_t c0 = group->collectives();
-      const double s = median_seconds([&] { group->average_gradients_(params, "benchmark gradients"); }, repeats);
+      const double s = median_seconds(average, repeats);
       return std::make_pair(s, (group->collectives() - c0) / (repeats + 1));
     };
-    const auto [bucketed_s, bucketed_n] = timed(cfg.distributed.bucket_mib);
-    const auto [per_tensor_s, per_tensor_n] = timed(1e-9);
+    // Training's buckets (distributed.bucket_mib) against one collective per tensor.
+    const auto [bucketed_s, bucketed_n] = timed([&] { group->average_gradients_(params, "benchmark gradients"); });
+    const auto [per_tensor_s, per_tensor_n] = timed([&] {
+      for (const auto& p : params) {
+        torch::Tensor g = p.grad();
+        group->all_reduce_sum_(g, "benchmark gradient");
+        g.div_(double(group->world_size()));
+      }
+    });
     j["gradient_mib"] = mib;
     j["tensors"] = params.size();
     j["bucketed_seconds"] = bucketed_s, j["bucketed_collectives"] = bucketed_n;
