@@ -81,6 +81,7 @@ int run_child(Config cfg, const AppArgs& args, int64_t batch, int64_t patch, int
     const auto [per_tensor_s, per_tensor_n] = timed([&] {
       for (const auto& p : params) {
         torch::Tensor g = p.grad();
+        if (!g.defined()) continue;  // a frozen DOE has no gradient (average_gradients_ counts it as zero)
         group->all_reduce_sum_(g, "benchmark gradient");
         g.div_(double(group->world_size()));
       }
