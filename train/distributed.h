@@ -52,7 +52,45 @@ struct DistributedEnv {
 // benchmarks and tests pick their MASTER_PORT with it).
 int free_local_port();
 
-class DataParallel final : public model::ReplicaGroup {
+// What training needs from the ranks it works with. DataParallel is a group
+// of W > 1 processes; SingleProcess is a world of one, in which every
+// collective leaves its input as it is, so the trainer has one code path.
+class Collectives : public model::ReplicaGroup {
+ public:
+  // A few numbers summed over ranks (loss terms, metric sums), in float64.
+  virtual std::vector<double> sum(const std::vector<double>& values, const std::string& what) = 0;
+  // Every rank's `value`, indexed by rank.
+  virtual std::vector<double> gather(double value, const std::string& what) = 0;
+  // Every tensor gets rank 0's values, in place.
+  virtual void broadcast_(const std::vector<torch::Tensor>& tensors, const std::string& what) = 0;
+  // The gradients of `params` summed over ranks and divided by the world size.
+  // A parameter without a gradient counts as zero.
+  virtual void average_gradients_(const std::vector<torch::Tensor>& params, const std::string& what) = 0;
+  // Waits until every rank got here.
+  virtual void barrier(const std::string& what) = 0;
+  // Rank 0 runs `work` while the others wait for it.
+  virtual void run_on_rank0(const std::string& key, const std::function<void()>& work, const std::string& what) = 0;
+  // Seconds spent waiting in collectives so far.
+  virtual double seconds_communicating() const = 0;
+};
+
+// This process alone: rank 0 of 1; sums, gathers, broadcasts and averages
+// return their input, run_on_rank0 runs the work.
+class SingleProcess final : public Collectives {
+ public:
+  int rank() const override { return 0; }
+  int world_size() const override { return 1; }
+  void all_reduce_sum_(torch::Tensor&, const std::string&) override {}
+  std::vector<double> sum(const std::vector<double>& values, const std::string&) override { return values; }
+  std::vector<double> gather(double value, const std::string&) override { return {value}; }
+  void broadcast_(const std::vector<torch::Tensor>&, const std::string&) override {}
+  void average_gradients_(const std::vector<torch::Tensor>&, const std::string&) override {}
+  void barrier(const std::string&) override {}
+  void run_on_rank0(const std::string&, const std::function<void()>& work, const std::string&) override { work(); }
+  double seconds_communicating() const override { return 0.0; }
+};
+
+class DataParallel final : public Collectives {
  public:
   // Joins the group: every rank must call this within distributed.timeout_s.
   // InputError when rank 0 cannot serve MASTER_PORT; DistributedError when the
@@ -66,30 +104,26 @@ class DataParallel final : public model::ReplicaGroup {
   int world_size() const override;
   // t summed over ranks, in place (any device; CPU tensors go straight to Gloo).
   void all_reduce_sum_(torch::Tensor& t, const std::string& what) override;
-  // A few numbers summed over ranks (loss terms, metric sums), in float64.
-  std::vector<double> sum(const std::vector<double>& values, const std::string& what);
-  // Every rank's `value`, indexed by rank.
-  std::vector<double> gather(double value, const std::string& what);
-  // Every tensor gets rank 0's values, in place (flat buckets per dtype).
-  void broadcast_(const std::vector<torch::Tensor>& tensors, const std::string& what);
-  // The gradients of `params` summed over ranks and divided by the world size,
-  // in flat buckets of about distributed.bucket_mib (one collective each,
-  // issued together). A parameter without a gradient counts as zero.
-  void average_gradients_(const std::vector<torch::Tensor>& params, const std::string& what);
+  std::vector<double> sum(const std::vector<double>& values, const std::string& what) override;
+  std::vector<double> gather(double value, const std::string& what) override;
+  // In flat buckets per dtype.
+  void broadcast_(const std::vector<torch::Tensor>& tensors, const std::string& what) override;
+  // In flat buckets of about distributed.bucket_mib (one collective each,
+  // issued together).
+  void average_gradients_(const std::vector<torch::Tensor>& params, const std::string& what) override;
   // Rank 0's `text` under `key`, on every rank (rank 0 publishes it, the others
   // fetch it): e.g. the resolved config, which must agree across ranks.
   std::string from_rank0(const std::string& key, const std::string& text);
-  // Waits until every rank got here.
-  void barrier(const std::string& what);
-  // Rank 0 runs `work` (e.g. generating the dataset) while the others wait for
-  // it, however long it takes, as long as rank 0 shows a heartbeat; without one
-  // for distributed.timeout_s (rank 0 died or hangs) they throw DistributedError.
-  // An exception in rank 0's work propagates there (the others then time out).
-  void run_on_rank0(const std::string& key, const std::function<void()>& work, const std::string& what);
+  void barrier(const std::string& what) override;
+  // The others wait however long the work takes, as long as rank 0 shows a
+  // heartbeat; without one for distributed.timeout_s (rank 0 died or hangs)
+  // they throw DistributedError. An exception in rank 0's work propagates
+  // there (the others then time out).
+  void run_on_rank0(const std::string& key, const std::function<void()>& work, const std::string& what) override;
 
   // Where the time went: seconds spent waiting in collectives, and their count.
-  double seconds_communicating() const;
-  int64_t collectives() const;
+  double seconds_communicating() const override;
+  int64_t collectives() const;  // how many collectives so far
   std::string describe() const;  // "rank 1 of 2 (127.0.0.1:29500, Gloo)"
 
  private:

@@ -14,7 +14,7 @@ using torch::autograd::variable_list;
 // all bands, this rank's rows of it.
 struct AssemblePsfs : torch::autograd::Function<AssemblePsfs> {
   static torch::Tensor forward(AutogradContext* ctx, torch::Tensor local, int64_t offset, int64_t total,
-                               DataParallel* group) {
+                               model::ReplicaGroup* group) {
     torch::Tensor full = torch::zeros({total, local.size(1), local.size(2), local.size(3)}, local.options());
     if (local.size(0) > 0) full.narrow(0, offset, local.size(0)).copy_(local);
     group->all_reduce_sum_(full, "the shared PSFs");
@@ -24,7 +24,7 @@ struct AssemblePsfs : torch::autograd::Function<AssemblePsfs> {
     return full;
   }
   static variable_list backward(AutogradContext* ctx, variable_list grads) {
-    auto* group = reinterpret_cast<DataParallel*>(ctx->saved_data["group"].toInt());
+    auto* group = reinterpret_cast<model::ReplicaGroup*>(ctx->saved_data["group"].toInt());
     torch::Tensor g = grads[0].contiguous().clone();
     group->all_reduce_sum_(g, "the shared PSFs' gradients");
     const int64_t offset = ctx->saved_data["offset"].toInt(), count = ctx->saved_data["count"].toInt();
@@ -34,7 +34,7 @@ struct AssemblePsfs : torch::autograd::Function<AssemblePsfs> {
 
 }  // namespace
 
-optics::PsfProvider make_shared_psf_provider(const optics::PsfSimulator& sim, std::shared_ptr<DataParallel> group) {
+optics::PsfProvider make_shared_psf_provider(const optics::PsfSimulator& sim, std::shared_ptr<model::ReplicaGroup> group) {
   return [&sim, group](const torch::Tensor& h, const std::vector<int64_t>& layers, const std::vector<int64_t>& bands) {
     const auto& spec = sim.spec();
     const int64_t L = int64_t(spec.wavelengths_m.size()), Z = int64_t(spec.depths_m.size()), P = spec.psf_size;

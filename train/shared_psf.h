@@ -12,9 +12,9 @@
 #pragma once
 #include <memory>
 
+#include "model/replica_group.h"
 #include "optics/psf.h"
 #include "optics/sensor.h"
-#include "train/distributed.h"
 
 namespace hsd::train {
 
@@ -22,6 +22,6 @@ namespace hsd::train {
 // PSFs [bands, layers, P, P] equal to sim.compute(height, layers, {}, bands).psf.
 // Every rank must call it the same number of times (simulate_sensor does,
 // once per call); `sim` and `group` must outlive it.
-optics::PsfProvider make_shared_psf_provider(const optics::PsfSimulator& sim, std::shared_ptr<DataParallel> group);
+optics::PsfProvider make_shared_psf_provider(const optics::PsfSimulator& sim, std::shared_ptr<model::ReplicaGroup> group);
 
 }  // namespace hsd::train

@@ -16,8 +16,6 @@
 #include "common/log.h"
 #include "common/tensor_io.h"
 #include "common/text_format.h"
-#include "data/image_io.h"
-#include "data/preview.h"
 #include "data/synthetic_dataset.h"
 #include "model/net_options.h"
 #include "model/spectral_upsampling.h"
@@ -29,8 +27,8 @@
 #include "train/metrics_log.h"
 #include "train/schedule.h"
 #include "train/shared_psf.h"
-#include "viz/plot.h"
-#include "viz/psf_atlas.h"
+#include "train/step_profiler.h"
+#include "train/validation_pictures.h"
 
 namespace hsd::train {
 
@@ -104,7 +102,10 @@ optics::PsfSpec training_psf_spec(const Config& cfg, const optics::Material& mat
 
 Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
     : cfg_(cfg),
-      group_(group && group->world_size() > 1 ? std::move(group) : nullptr),
+      ranks_(group && group->world_size() > 1 ? std::shared_ptr<Collectives>(std::move(group))
+                                              : std::make_shared<SingleProcess>()),
+      rank_(ranks_->rank()),
+      world_(ranks_->world_size()),
       device_(resolve_device(cfg.device)),
       material_(optics::Material::load(cfg.optics.material)),
       psf_(std::make_unique<optics::PsfSimulator>(training_psf_spec(cfg, material_, device_))),
@@ -150,13 +151,11 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
                         std::make_unique<torch::optim::AdamOptions>(cfg.train.lr_doe_m));
   }
   opt_ = std::make_unique<torch::optim::Adam>(std::move(groups), torch::optim::AdamOptions(cfg.train.lr_net));
-  if (group_) {
-    rank_ = group_->rank(), world_ = group_->world_size();
-    check_global_batch(cfg, world_);
-    if (cfg.distributed.sync_batch_norm) net_->set_replica_group(group_);
-    if (cfg.distributed.split_psf && !fixed_psf_) shared_psf_ = make_shared_psf_provider(*psf_, group_);
-    group_->broadcast_(replicated_state(), "the initial network and DOE");
-  }
+  check_global_batch(cfg, world_);
+  // Batch norm over the global batch and PSFs shared out: only among several ranks.
+  if (world_ > 1 && cfg.distributed.sync_batch_norm) net_->set_replica_group(ranks_);
+  if (world_ > 1 && cfg.distributed.split_psf && !fixed_psf_) shared_psf_ = make_shared_psf_provider(*psf_, ranks_);
+  ranks_->broadcast_(replicated_state(), "the initial network and DOE");
 }
 
 void check_global_batch(const Config& cfg, int world_size) {
@@ -188,19 +187,19 @@ std::vector<torch::Tensor> Trainer::replicated_state(bool with_buffers) const {
 }
 
 void Trainer::check_replicas_agree(int64_t step) {
-  if (!group_) return;
+  if (world_ == 1) return;  // nothing to compare
   torch::NoGradGuard no_grad;
   // Batch norm per rank (distributed.sync_batch_norm = false): the running
   // statistics differ by design (validate() takes rank 0's), so only the rest is compared.
   const std::vector<torch::Tensor> state = replicated_state(cfg_.distributed.sync_batch_norm);
   std::vector<torch::Tensor> rank0;
   for (const auto& t : state) rank0.push_back(t.detach().clone());
-  group_->broadcast_(rank0, "rank 0's parameters (agreement check)");
+  ranks_->broadcast_(rank0, "rank 0's parameters (agreement check)");
   double diff = 0.0;
   for (size_t i = 0; i < state.size(); ++i)
     if (state[i].numel() > 0)
       diff = std::max(diff, (state[i].to(torch::kFloat64) - rank0[i].to(torch::kFloat64)).abs().max().item<double>());
-  const std::vector<double> slots = group_->gather(diff, "parameter differences");
+  const std::vector<double> slots = ranks_->gather(diff, "parameter differences");
   bool drifted = false;
   for (int64_t r = 1; r < world_; ++r)
     if (slots[size_t(r)] != 0.0) {
@@ -217,10 +216,13 @@ void Trainer::attach_data() {
   // Rank 0 makes the dataset if needed while the others wait (as long as it
   // shows a heartbeat). The others never generate one: their data.root must
   // hold rank 0's dataset (a shared folder, or a copy on each host).
-  if (group_) group_->run_on_rank0("dataset", [&] { data::ensure_dataset(cfg_); }, "to provide the dataset " + cfg_.data.root);
-  Config local = cfg_;
-  if (group_ && rank_ != 0) local.data.generate_if_missing = false;
-  const std::string root = data::ensure_dataset(local);
+  std::string root;
+  ranks_->run_on_rank0("dataset", [&] { root = data::ensure_dataset(cfg_); }, "to provide the dataset " + cfg_.data.root);
+  if (rank_ != 0) {
+    Config local = cfg_;
+    local.data.generate_if_missing = false;
+    root = data::ensure_dataset(local);
+  }
   const auto bands = cfg_.optics.wavelengths_m();
   const double bw = cfg_.optics.band_width_m();
   train_scenes_ = data::load_split(root, "train", bands, bw, cfg_.data.loader_threads);
@@ -297,7 +299,7 @@ Batch Trainer::train_batch(int64_t step) const {
   return out;
 }
 
-StepStats Trainer::step(const Batch& batch, int64_t step) {
+StepStats Trainer::set_learning_rates(int64_t step) {
   const auto& T = cfg_.train;
   const double f = lr_factor(step, std::max<int64_t>(T.steps, 1), T.warmup_steps, T.decay, T.min_lr_ratio);
   StepStats st;
@@ -306,32 +308,10 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   auto& groups = opt_->param_groups();
   static_cast<torch::optim::AdamOptions&>(groups[0].options()).lr(st.lr_net);
   if (groups.size() > 1) static_cast<torch::optim::AdamOptions&>(groups[1].options()).lr(st.lr_doe);
+  return st;
+}
 
-  net_->train();
-  // Profiling (set_profile) times each phase; the backward pass is then run in
-  // three parts (network, sensor, PSF) by cutting the graph at the network's
-  // input and at the PSFs: the same chain rule, the same gradients.
-  StepProfile* const prof = profile_;
-  using Clock = std::chrono::steady_clock;
-  auto tic = Clock::now();
-  auto lap = [&](double StepProfile::*phase) {
-    if (!prof) return;
-    const auto now = Clock::now();
-    prof->*phase += std::chrono::duration<double>(now - tic).count();
-    tic = now;
-  };
-  const optics::PsfProvider& base = fixed_psf_ ? fixed_psf_ : shared_psf_;
-  optics::PsfProvider provider = base;
-  std::vector<std::pair<torch::Tensor, torch::Tensor>> psf_cuts;  // profiling: each PSF stack and its cut copy
-  double psf_seconds = 0;
-  if (prof)
-    provider = [&](const torch::Tensor& hh, const std::vector<int64_t>& layers, const std::vector<int64_t>& bands) {
-      const auto t = Clock::now();
-      const torch::Tensor out = base ? base(hh, layers, bands) : psf_->compute(hh, layers, {}, bands).psf;
-      psf_seconds += std::chrono::duration<double>(Clock::now() - t).count();
-      psf_cuts.emplace_back(out, out.requires_grad() ? out.detach().requires_grad_() : out);
-      return psf_cuts.back().second;
-    };
+Trainer::StepImage Trainer::render_step(const Batch& batch, int64_t step, optics::PsfProvider provider) {
   const auto gens = image_generators(mix(cfg_.seed ^ 0xA5A5A5A5ull, uint64_t(step)), batch.first_index, batch.radiance.size(0));
   const torch::Tensor design = doe_.height();
   const torch::Tensor h = fixed_psf_ ? design : with_fabrication_noise(design, cfg_, doe_, step);
@@ -342,54 +322,32 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   // design's PSFs, as a fabricated camera that does not know its errors does
   // (and as hsd_fabricate --tolerance evaluates it): those are a second call
   // of the provider.
-  const bool pre = net_->options().preinverse_layers > 0;
-  torch::Tensor rgb_psf;
-  if (pre) {
+  StepImage out;
+  if (net_->options().preinverse_layers > 0) {
     auto every_psf = [&](const torch::Tensor& hh) { return provider ? provider(hh, all_layers(), all_bands()) : psf_->compute(hh).psf; };
     const torch::Tensor all = every_psf(h);
     const torch::Tensor known = h.is_same(design) ? all : every_psf(design);
-    rgb_psf = model::camera_rgb_psfs(known, sensor_.omega);
+    out.rgb_psf = model::camera_rgb_psfs(known, sensor_.omega);
     provider = optics::fixed_psf_provider(all);
   }
-  const optics::SensorImage img =
-      optics::simulate_sensor(*psf_, sensor_, h, batch.radiance, batch.depth_m, gens, optics::LeaveOut(), provider);
-  lap(&StepProfile::sensor_forward);
-  if (prof) prof->sensor_forward -= psf_seconds, prof->psf_forward += psf_seconds;
-  // Profiling cuts the graph at the rendered window (the network's side of the sensor model).
-  const torch::Tensor window = prof && img.image.requires_grad() ? img.image.detach().requires_grad_() : img.image;
-  torch::Tensor pre_in;  // the whole rendered window's deconvolutions, then its centre (no wrap-around at the patch)
-  if (pre) {
-    net_->set_preinverse_psf(rgb_psf);
-    pre_in = centre(net_->preinverse(window));
-  }
-  const model::NetOutput out = net_->forward(centre(window), pre_in);
-  lap(&StepProfile::network_forward);
-  const LossTerms L =
-      reconstruction_loss(out.hs, centre(batch.radiance), out.inv_depth, 1.0 / centre(batch.depth_m), weights_);
-  // The global batch's loss terms (the mean of the ranks' equal slices): what
-  // is logged, and what every rank checks, so all ranks stop together.
+  out.image = optics::simulate_sensor(*psf_, sensor_, h, batch.radiance, batch.depth_m, gens, optics::LeaveOut(), provider);
+  return out;
+}
+
+std::vector<double> Trainer::global_loss_terms(const LossTerms& L, int64_t step) {
+  // The mean of the ranks' equal slices: what is logged, and what every rank
+  // checks, so all ranks stop together.
   std::vector<double> terms{L.total.item<double>(), L.hs.item<double>(), L.depth.item<double>(), L.tv.item<double>()};
-  if (group_) {
-    terms = group_->sum(terms, "the loss of step " + std::to_string(step));
-    for (double& t : terms) t /= double(world_);
-  }
+  terms = ranks_->sum(terms, "the loss of step " + std::to_string(step));
+  for (double& t : terms) t /= double(world_);
   if (!std::isfinite(terms[0]))
     throw NumericalError("step " + std::to_string(step) + ": the loss is NaN or Inf (cube term " + c10::str(terms[1]) +
                          ", depth term " + c10::str(terms[2]) + ")");
-  lap(&StepProfile::loss);
-  opt_->zero_grad();
-  L.total.backward();
-  lap(&StepProfile::network_backward);
-  if (prof && window.requires_grad() && window.grad().defined()) {
-    img.image.backward(window.grad());
-    lap(&StepProfile::sensor_backward);
-    std::vector<torch::Tensor> outs, grads;  // one backward call: the stacks share the DOE's graph
-    for (const auto& [out, cut] : psf_cuts)
-      if (cut.requires_grad() && cut.grad().defined()) outs.push_back(out), grads.push_back(cut.grad());
-    if (!outs.empty()) torch::autograd::backward(outs, grads);
-    lap(&StepProfile::psf_backward);
-  }
-  if (group_) group_->average_gradients_(trained_parameters(), "the gradients of step " + std::to_string(step));
+  return terms;
+}
+
+void Trainer::apply_gradients(int64_t step) {
+  ranks_->average_gradients_(trained_parameters(), "the gradients of step " + std::to_string(step));
   std::vector<std::pair<std::string, torch::Tensor>> named;
   for (const auto& p : net_->named_parameters()) named.emplace_back("network parameter " + p.key(), p.value());
   if (doe_trained_) named.emplace_back("the DOE height map", doe_.parameter());
@@ -397,15 +355,51 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   // Only the network's gradient norm is clipped: the DOE's gradient is in loss
   // per metre (~1e6 times larger), and Adam's step into it is already bounded
   // by lr_doe_m.
-  if (T.clip_grad_norm > 0) torch::nn::utils::clip_grad_norm_(net_->parameters(), T.clip_grad_norm);
+  if (cfg_.train.clip_grad_norm > 0) torch::nn::utils::clip_grad_norm_(net_->parameters(), cfg_.train.clip_grad_norm);
   opt_->step();
-  if (pre) net_->set_preinverse_psf(rgb_psf.detach());  // its graph is spent; refresh_preinverse() for the new DOE
-  lap(&StepProfile::optimizer);
+}
+
+StepStats Trainer::step(const Batch& batch, int64_t step) {
+  StepStats st = set_learning_rates(step);
+  net_->train();
+  // Profiling (set_profile) times each phase; the backward pass is then run in
+  // three parts (network, sensor, PSF) by cutting the graph at the network's
+  // input and at the PSFs: the same chain rule, the same gradients.
+  StepProfile* const prof = profile_;
+  PhaseTimer timer(prof);
+  PsfCuts cuts;
+  const optics::PsfProvider& base = fixed_psf_ ? fixed_psf_ : shared_psf_;
+  const StepImage si = render_step(batch, step, prof ? cuts.wrap(base, *psf_) : base);
+  timer.lap(&StepProfile::sensor_forward);
+  if (prof) prof->sensor_forward -= cuts.seconds(), prof->psf_forward += cuts.seconds();
+  const torch::Tensor& image = si.image.image;
+  const torch::Tensor window = prof && image.requires_grad() ? image.detach().requires_grad_() : image;
+  torch::Tensor pre_in;  // the whole rendered window's deconvolutions, then its centre (no wrap-around at the patch)
+  if (si.rgb_psf.defined()) {
+    net_->set_preinverse_psf(si.rgb_psf);
+    pre_in = centre(net_->preinverse(window));
+  }
+  const model::NetOutput out = net_->forward(centre(window), pre_in);
+  timer.lap(&StepProfile::network_forward);
+  const LossTerms L =
+      reconstruction_loss(out.hs, centre(batch.radiance), out.inv_depth, 1.0 / centre(batch.depth_m), weights_);
+  const std::vector<double> terms = global_loss_terms(L, step);
+  timer.lap(&StepProfile::loss);
+  opt_->zero_grad();
+  L.total.backward();
+  timer.lap(&StepProfile::network_backward);
+  if (prof && window.requires_grad() && window.grad().defined()) {
+    image.backward(window.grad());
+    timer.lap(&StepProfile::sensor_backward);
+    cuts.backward();
+    timer.lap(&StepProfile::psf_backward);
+  }
+  apply_gradients(step);
+  // The pre-inversion's graph is spent; refresh_preinverse() for the new DOE.
+  if (si.rgb_psf.defined()) net_->set_preinverse_psf(si.rgb_psf.detach());
+  timer.lap(&StepProfile::optimizer);
   if (prof) ++prof->steps;
-  st.loss = terms[0];
-  st.hs = terms[1];
-  st.depth = terms[2];
-  st.tv = terms[3];
+  st.loss = terms[0], st.hs = terms[1], st.depth = terms[2], st.tv = terms[3];
   return st;
 }
 
@@ -413,7 +407,7 @@ ValStats Trainer::validate() {
   if (!val_.radiance.defined()) throw InputError("trainer: attach_data() first");
   torch::NoGradGuard no_grad;
   // Per-rank batch norm: every rank validates with rank 0's running statistics.
-  if (group_ && !cfg_.distributed.sync_batch_norm) group_->broadcast_(net_->buffers(), "rank 0's batch-norm statistics");
+  if (!cfg_.distributed.sync_batch_norm) ranks_->broadcast_(net_->buffers(), "rank 0's batch-norm statistics");
   net_->eval();
   refresh_preinverse();
   const torch::Tensor h = doe_.height();
@@ -451,8 +445,8 @@ ValStats Trainer::validate() {
     px += double(Z.numel());
   }
   net_->train();
-  if (group_) {
-    const auto s = group_->sum({loss, se, count, abs_z, se_z, px, se_up, abs_c, se_c, sat, se_w}, "validation sums");
+  {
+    const auto s = ranks_->sum({loss, se, count, abs_z, se_z, px, se_up, abs_c, se_c, sat, se_w}, "validation sums");
     loss = s[0], se = s[1], count = s[2], abs_z = s[3], se_z = s[4], px = s[5];
     se_up = s[6], abs_c = s[7], se_c = s[8], sat = s[9], se_w = s[10];
   }
@@ -477,15 +471,14 @@ void Trainer::save_checkpoint(const std::string& path, int64_t next_step) const 
 int64_t Trainer::load_checkpoint(const std::string& path) {
   TrainingState state{doe_, net_, *opt_, baseline_inv_depth_};
   const int64_t next = read_checkpoint(path, state);
-  if (group_) {  // every rank read a checkpoint of the same step, then all take rank 0's values
-    const auto all = group_->gather(double(next), "the resumed step");
-    for (int64_t r = 0; r < world_; ++r)
-      if (all[size_t(r)] != all[0])
-        throw DistributedError("rank " + std::to_string(r) + " resumed from step " + c10::str(int64_t(all[size_t(r)])) +
-                               " but rank 0 from step " + c10::str(int64_t(all[0])) + " (" + path +
-                               " differs between the ranks' hosts)");
-    group_->broadcast_(replicated_state(), "the resumed network, DOE and Adam state");
-  }
+  // Every rank read a checkpoint of the same step, then all take rank 0's values.
+  const auto all = ranks_->gather(double(next), "the resumed step");
+  for (int64_t r = 0; r < world_; ++r)
+    if (all[size_t(r)] != all[0])
+      throw DistributedError("rank " + std::to_string(r) + " resumed from step " + c10::str(int64_t(all[size_t(r)])) +
+                             " but rank 0 from step " + c10::str(int64_t(all[0])) + " (" + path +
+                             " differs between the ranks' hosts)");
+  ranks_->broadcast_(replicated_state(), "the resumed network, DOE and Adam state");
   refresh_preinverse();  // the loaded DOE's PSFs
   return next;
 }
@@ -498,37 +491,22 @@ void Trainer::write_val_pictures(const std::string& dir, int64_t step) {
   const optics::SensorImage img = optics::simulate_sensor(
       *psf_, sensor_, doe_.height(), val_.radiance.narrow(0, 0, n), val_.depth_m.narrow(0, 0, n),
       image_generators(mix(cfg_.seed, kValSeed + 1), 0, n), optics::LeaveOut(), fixed_psf_);
-  const torch::Tensor I = centre(val_.radiance.narrow(0, 0, n)), Z = centre(val_.depth_m.narrow(0, 0, n));
-  const torch::Tensor J = centre(img.image);
-  const model::NetOutput out = reconstruct_window(img.image);
+  ValidationPictures v;
+  v.truth = centre(val_.radiance.narrow(0, 0, n));
+  v.depth_m = centre(val_.depth_m.narrow(0, 0, n));
+  v.sensor = centre(img.image);
+  v.out = reconstruct_window(img.image);
   net_->train();
-  const auto bands = cfg_.optics.wavelengths_m();
-  const double bw = cfg_.optics.band_width_m();
-  char stem[64];
-  std::snprintf(stem, sizeof stem, "%s/step_%06lld_", dir.c_str(), (long long)step);
-  const torch::Tensor truth0 = data::spectral_to_linear_srgb(I[0].cpu(), bands, bw);
-  const double white = std::max(1e-6, truth0.max().item<double>());
+  v.wavelengths_m = cfg_.optics.wavelengths_m();
+  v.band_width_m = cfg_.optics.band_width_m();
   const auto& g = cfg_.data.generator;
-  const double near = std::min(g.depth_min_m, cfg_.optics.depths_m.front()), far = std::max(g.depth_max_m, cfg_.optics.depths_m.back());
-  std::vector<std::string> parts;
-  for (int64_t k = 0; k < n; ++k) {
-    const std::string p = std::string(stem) + std::to_string(k) + "_";
-    for (const char* f : {"truth_srgb", "sensor", "recon_srgb", "error_hs", "truth_depth", "recon_depth"})
-      parts.push_back(p + f + ".png");
-    data::write_srgb_png(p + "truth_srgb.png", k == 0 ? truth0 : data::spectral_to_linear_srgb(I[k].cpu(), bands, bw), white);
-    data::write_srgb_png(p + "recon_srgb.png", data::spectral_to_linear_srgb(out.hs[k].clamp_min(0).cpu(), bands, bw), white);
-    data::write_srgb_png(p + "sensor.png", J[k].cpu(), std::max(1e-6, J[k].max().item<double>()));
-    data::write_depth_png(p + "truth_depth.png", Z[k].cpu(), {}, near, far);
-    data::write_depth_png(p + "recon_depth.png", out.depth_m[k].cpu(), {}, near, far);
-    // Error map: |Î − I| averaged over bands, as grey scaled to the patch's peak radiance / 4.
-    const torch::Tensor err = (out.hs[k] - I[k]).abs().mean(0).cpu();
-    data::write_srgb_png(p + "error_hs.png", err.unsqueeze(0).expand({3, -1, -1}), std::max(1e-6, 0.25 * I[k].max().item<double>()));
-  }
-  // One picture per validation: a row per patch, [truth | sensor | reconstruction |
-  // |error| | true depth | predicted depth], enlarged 3x; the pieces are removed.
-  viz::write_montage(parts, 6, 3.0, std::string(stem) + "reconstructions.png");
-  viz::write_psf_atlas(std::string(stem) + "psf_atlas.png", psf_stack().cpu(),
-                          psf_->spec().wavelengths_m, psf_->spec().depths_m);
+  v.near_m = std::min(g.depth_min_m, cfg_.optics.depths_m.front());
+  v.far_m = std::max(g.depth_max_m, cfg_.optics.depths_m.back());
+  v.psf = psf_stack();
+  v.depths_m = psf_->spec().depths_m;
+  char stem[64];
+  std::snprintf(stem, sizeof stem, "/step_%06lld_", (long long)step);
+  write_validation_pictures(dir + stem, v);
 }
 
 void Trainer::start_from(const std::string& path) {
@@ -543,6 +521,42 @@ void Trainer::check_resume(const std::string& out_dir) {
   if (!std::filesystem::is_regular_file(ckpt)) input_error(ckpt, "no checkpoint to resume from (--resume)");
   const int64_t start = load_checkpoint(ckpt);
   if (writes_outputs()) MetricsLog::check_resumable(out_dir + "/metrics.csv", start);
+}
+
+namespace {
+
+// The log line of a validation, its baselines beside each figure.
+std::string validation_line(int64_t step, const ValStats& v) {
+  char buf[400], wb[64] = "";
+  if (std::isfinite(v.baseline_wiener_hs_psnr_db))
+    std::snprintf(wb, sizeof wb, "; Wiener + upsampling %.2f dB", v.baseline_wiener_hs_psnr_db);
+  std::snprintf(buf, sizeof buf,
+                "validation at step %lld: HS PSNR %.2f dB (upsampling alone %.2f dB%s); depth RMSE %.3f m (constant "
+                "depth %.3f m), MAE %.3f m (%.3f m); depth sigmoid saturated at %.1f%% of pixels",
+                (long long)step, v.hs_psnr_db, v.baseline_hs_psnr_db, wb, v.depth_rmse_m, v.baseline_depth_rmse_m,
+                v.depth_mae_m, v.baseline_depth_mae_m, 100.0 * v.depth_saturated);
+  return buf;
+}
+
+}  // namespace
+
+void Trainer::record_validation(MetricsLog& metrics, int64_t step, const std::string& val_dir, bool log_line) {
+  const ValStats v = validate();
+  metrics.set_val(v);
+  if (!writes_outputs()) return;
+  if (log_line) log::info(validation_line(step, v));
+  write_val_pictures(val_dir, step);
+}
+
+std::string Trainer::progress_suffix(double loss, double seconds, int64_t steps, double collective_seconds) const {
+  char sfx[128];
+  const double per = seconds / double(std::max<int64_t>(steps, 1));
+  if (world_ > 1)
+    std::snprintf(sfx, sizeof sfx, "loss %.4g  %.2f s/step  %.0f%% in collectives", loss, per,
+                  100.0 * collective_seconds / std::max(1e-9, seconds));
+  else
+    std::snprintf(sfx, sizeof sfx, "loss %.4g  %.2f s/step", loss, per);
+  return sfx;
 }
 
 void Trainer::run(const std::string& out_dir, bool resume) {
@@ -562,80 +576,50 @@ void Trainer::run(const std::string& out_dir, bool resume) {
     wall_offset = metrics.resume(start);
     log::info("resuming from " + ckpt + " at step " + std::to_string(start));
   }
-  auto log_val = [&](int64_t step, const ValStats& v) {
-    char buf[400], wb[64] = "";
-    if (std::isfinite(v.baseline_wiener_hs_psnr_db))
-      std::snprintf(wb, sizeof wb, "; Wiener + upsampling %.2f dB", v.baseline_wiener_hs_psnr_db);
-    std::snprintf(buf, sizeof buf,
-                  "validation at step %lld: HS PSNR %.2f dB (upsampling alone %.2f dB%s); depth RMSE %.3f m (constant "
-                  "depth %.3f m), MAE %.3f m (%.3f m); depth sigmoid saturated at %.1f%% of pixels",
-                  (long long)step, v.hs_psnr_db, v.baseline_hs_psnr_db, wb, v.depth_rmse_m, v.baseline_depth_rmse_m,
-                  v.depth_mae_m, v.baseline_depth_mae_m, 100.0 * v.depth_saturated);
-    if (writer) log::info(buf);
-  };
-
   std::unique_ptr<log::Progress> progress;
   if (writer) {
     progress = std::make_unique<log::Progress>("train", long(T.steps));
     progress->set_start(long(start));
+    log::info("network arithmetic in training steps: " + precision_.why);
   }
-  if (writer) log::info("network arithmetic in training steps: " + precision_.why);
-  if (group_) log::info("data-parallel: " + std::to_string(world_) + " ranks x " + std::to_string(T.batch_size / world_) +
-                        " patches = global batch " + std::to_string(T.batch_size));
+  if (world_ > 1)
+    log::info("data-parallel: " + std::to_string(world_) + " ranks x " + std::to_string(T.batch_size / world_) +
+              " patches = global batch " + std::to_string(T.batch_size));
   const auto t0 = std::chrono::steady_clock::now();
   auto wall = [&] { return wall_offset + std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(); };
   // Data loading overlaps compute: the next batch is made while this step runs.
   std::future<Batch> next;
   if (start < T.steps) next = std::async(std::launch::async, [this, start] { return train_batch(start); });
-  double rate_t = wall();
-  const double comm_t = group_ ? group_->seconds_communicating() : 0.0;
-  int64_t rate_n = 0;
+  const double rate_t = wall(), comm_t = ranks_->seconds_communicating();
   if (start == 0 && T.steps > 0) {  // where validation starts from
-    const ValStats v = validate();
     metrics.add_row(0, 0.0);
-    metrics.set_val(v);
-    log_val(0, v);
-    if (writer) write_val_pictures(val_dir, 0);
+    record_validation(metrics, 0, val_dir, true);
     metrics.write();
   }
   for (int64_t k = start; k < T.steps; ++k) {
     const Batch b = next.get();
     if (k + 1 < T.steps) next = std::async(std::launch::async, [this, k] { return train_batch(k + 1); });
     const StepStats st = step(b, k);
-    ++rate_n;
     const bool last = k + 1 == T.steps;
     const bool do_val = (k + 1) % T.val_every == 0 || last;
     if ((k + 1) % T.log_every == 0 || do_val || k == start) {
       metrics.add_row(k + 1, wall());
       metrics.set_train(st);
-      if (do_val) {
-        const ValStats v = validate();
-        metrics.set_val(v);
-        if (last) log_val(k + 1, v);
-      }
-      if (do_val && writer) write_val_pictures(val_dir, k + 1);
+      if (do_val) record_validation(metrics, k + 1, val_dir, last);
       metrics.write();
     }
     if ((k + 1) % T.checkpoint_every == 0 || last) {
       check_replicas_agree(k + 1);
       if (writer) save_checkpoint(ckpt, k + 1);
     }
-    const double now = wall();
     if (progress) {
-      char sfx[128];
-      const double per = (now - rate_t) / double(std::max<int64_t>(rate_n, 1));
-      if (group_)
-        std::snprintf(sfx, sizeof sfx, "loss %.4g  %.2f s/step  %.0f%% in collectives", st.loss, per,
-                      100.0 * (group_->seconds_communicating() - comm_t) / std::max(1e-9, now - rate_t));
-      else
-        std::snprintf(sfx, sizeof sfx, "loss %.4g  %.2f s/step", st.loss, per);
-      progress->set_suffix(sfx);
+      progress->set_suffix(
+          progress_suffix(st.loss, wall() - rate_t, k + 1 - start, ranks_->seconds_communicating() - comm_t));
       progress->step();
     }
   }
   if (progress) progress->finish();
-  // Every rank leaves once rank 0's last checkpoint is written.
-  if (group_) group_->barrier("at the end of training");
+  ranks_->barrier("at the end of training");  // every rank leaves once rank 0's last checkpoint is written
   if (start >= T.steps) log::info("nothing to do: the checkpoint is at step " + std::to_string(start));
 }
 

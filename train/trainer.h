@@ -11,7 +11,9 @@
 // exactly (same thread count).
 // Data-parallel (train/distributed.h): with a DataParallel group each rank
 // trains on its slice of the same global batch, with averaged gradients and
-// batch statistics of the global batch; rank 0 alone writes files.
+// batch statistics of the global batch; rank 0 alone writes files. Without
+// one the trainer works in a world of one process (SingleProcess), through
+// the same calls.
 #pragma once
 #include <cmath>
 #include <future>
@@ -32,6 +34,7 @@
 #include "optics/sensor.h"
 #include "train/distributed.h"
 #include "train/loss.h"
+#include "train/metrics_log.h"
 #include "train/precision.h"
 #include "train/step_stats.h"
 
@@ -98,7 +101,7 @@ class Trainer {
   // Before any data is loaded: InputError (exit 2) naming the file if
   // out_dir's checkpoint or metrics.csv cannot be resumed from.
   void check_resume(const std::string& out_dir);
-  bool writes_outputs() const { return !group_ || group_->rank() == 0; }
+  bool writes_outputs() const { return rank_ == 0; }
 
   torch::Tensor height() const { return doe_.height().detach(); }
   // The imaging PSFs' provider for simulate_sensor: a fixed stack
@@ -122,6 +125,23 @@ class Trainer {
   const optics::SensorModel& sensor() const { return sensor_; }
 
  private:
+  // The pieces of step(): the learning rates of step k (into the optimizer),
+  // the sensor image of the batch (with the pre-inversion's RGB PSFs when the
+  // network has one), the global batch's loss terms (total, cube, depth, TV;
+  // NumericalError when not finite), and the gradients averaged, checked,
+  // clipped and applied.
+  struct StepImage {
+    optics::SensorImage image;
+    torch::Tensor rgb_psf;  // [Z, 3, P, P] of the design, with the gradient; undefined without a pre-inversion
+  };
+  StepStats set_learning_rates(int64_t step);
+  StepImage render_step(const Batch& batch, int64_t step, optics::PsfProvider provider);
+  std::vector<double> global_loss_terms(const LossTerms& L, int64_t step);
+  void apply_gradients(int64_t step);
+  // The pieces of run(): a validation into metrics (pictures and, if
+  // log_line, the log line on rank 0), and the progress bar's suffix.
+  void record_validation(MetricsLog& metrics, int64_t step, const std::string& val_dir, bool log_line);
+  std::string progress_suffix(double loss, double seconds, int64_t steps, double collective_seconds) const;
   void write_val_pictures(const std::string& dir, int64_t step);
   // The network on the centre patch of a rendered window [B, 3, S', S'] (the
   // pre-inversion, when on, of the whole window, then its centre).
@@ -136,7 +156,7 @@ class Trainer {
   // rounding on unlike hosts); a warning and rank 0's values otherwise.
   void check_replicas_agree(int64_t step);
   Config cfg_;
-  std::shared_ptr<DataParallel> group_;
+  std::shared_ptr<Collectives> ranks_;  // a DataParallel group, or SingleProcess
   optics::PsfProvider shared_psf_;  // training PSFs shared out over the ranks (distributed.split_psf)
   optics::PsfProvider fixed_psf_;   // optics.psf_source = "all_in_focus": the control's PSFs
   bool doe_trained_ = true;         // false when frozen (train.freeze_doe) or unused (a fixed PSF source)
@@ -145,7 +165,7 @@ class Trainer {
   TrainingPrecision precision_;
   StepProfile* profile_ = nullptr;
   int64_t margin_ = 0;              // data.render_margin_px resolved
-  int64_t rank_ = 0, world_ = 1;
+  int64_t rank_ = 0, world_ = 1;  // ranks_'s
   torch::Device device_;
   optics::Material material_;
   std::unique_ptr<optics::PsfSimulator> psf_;
