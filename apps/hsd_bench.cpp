@@ -42,7 +42,7 @@ int run(const AppArgs& args) {
   // A config that starts from the Fisher design (paper.json) before hsd_fisher
   // has written it: the Fresnel start instead (the timings do not depend on the
   // height values; hsd_bench accuracy's numbers are for that start).
-  if (cfg.optics.doe.init == "fisher" && !std::filesystem::exists(cfg.optics.doe.fisher_path)) {
+  if (cfg.optics.doe.init == DoeFamily::fisher && !std::filesystem::exists(cfg.optics.doe.fisher_path)) {
     log::info("hsd_bench: no Fisher design at " + cfg.optics.doe.fisher_path + ": benchmarking with the Fresnel start");
     overrides.push_back("optics.doe.init=\"fresnel\"");
     cfg = load_config(config, overrides);

@@ -4,6 +4,7 @@
 // (optics/fabrication_error.h, optics/synthetic_captures.h).
 #include <cmath>
 #include <cstdio>
+#include <optional>
 
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -15,6 +16,7 @@
 #include "common/error.h"
 #include "common/log.h"
 #include "common/tensor_io.h"
+#include "common/text_format.h"
 #include "data/capture_set.h"
 #include "optics/doe.h"
 #include "optics/fabrication_error.h"
@@ -77,7 +79,7 @@ int make_captures(const AppArgs& args, const Config& cfg) {
   const torch::Tensor height = optics::apply_fabrication_error(
       ideal, cfg.fabrication.error, {cfg.optics.doe_pitch_m, 1, doe.max_height_m(), cfg.fabrication.levels}, cfg.seed + 17);
   const double rms = (height - ideal).pow(2).mean().sqrt().item<double>();
-  log::info("DOE " + cfg.optics.doe.init + " perturbed by fabrication.error: RMS height change " + c10::str(rms * 1e9) + " nm");
+  log::info("DOE " + choice_word(cfg.optics.doe.init, cfg.optics.doe.init_path) + " perturbed by fabrication.error: RMS height change " + c10::str(rms * 1e9) + " nm");
   const torch::Tensor frames_light = simulate(cfg, material, height, F, "PSFs on the frame");
   const torch::Tensor truth = simulate(cfg, material, height, P, "PSFs in the window");
   const optics::SyntheticCaptures cap = optics::synthesize_captures(frames_light, S, uint64_t(S.seed) * 1000003ULL + 29);
@@ -156,6 +158,93 @@ void write_mismatch_png(const std::string& path, const torch::Tensor& measured, 
   write_binary_file(path, std::vector<char>(buf.begin(), buf.end()));
 }
 
+// Every capture's calibration, [L, Z] per quantity (centroid [L, Z, 2] (row,
+// col) px); every capture is read and checked before anything is printed, so
+// a bad one is exit 2 with one line.
+struct CalibratedSlices {
+  torch::Tensor psf;  // [L, Z, P, P] float64
+  torch::Tensor background, sigma, snr, energy, centroid, hot;
+};
+
+CalibratedSlices calibrate_slices(const data::CaptureSet& caps, const torch::Tensor& dark, int64_t P,
+                                  const CalibrationConfig& K, const std::optional<std::pair<double, double>>& axis,
+                                  bool ring_background) {
+  const int64_t L = int64_t(caps.wavelengths_nm.size()), Z = int64_t(caps.depths_m.size());
+  const auto f64 = torch::kFloat64;
+  CalibratedSlices s{torch::zeros({L, Z, P, P}, f64), torch::zeros({L, Z}, f64), torch::zeros({L, Z}, f64),
+                     torch::zeros({L, Z}, f64),       torch::zeros({L, Z}, f64), torch::zeros({L, Z, 2}, f64),
+                     torch::zeros({L, Z}, torch::kInt64)};
+  for (int64_t l = 0; l < L; ++l)
+    for (int64_t z = 0; z < Z; ++z) {
+      const auto& files = caps.files[size_t(l)][size_t(z)];
+      const data::CaptureFrame fr = data::read_capture_frames(files);
+      const double sat = caps.saturation >= 0 ? caps.saturation : fr.saturation;
+      const optics::CapturedPsf c = optics::calibrate_capture(fr.counts, dark, P, K, sat, axis, files.front(), ring_background);
+      s.psf[l][z].copy_(c.psf);
+      s.background[l][z] = c.background, s.sigma[l][z] = c.noise_sigma, s.snr[l][z] = c.snr;
+      s.energy[l][z] = c.energy_in_window;
+      s.centroid[l][z][0] = c.centroid_px.first, s.centroid[l][z][1] = c.centroid_px.second;
+      s.hot[l][z] = c.hot_pixels;
+    }
+  return s;
+}
+
+// [L, Z] or [L, Z, 2] -> nested JSON arrays.
+Json nested_json(const torch::Tensor& t) {
+  Json j = Json::array();
+  const torch::Tensor c = t.to(torch::kFloat64).contiguous();
+  for (int64_t l = 0; l < c.size(0); ++l) {
+    Json row = Json::array();
+    for (int64_t z = 0; z < c.size(1); ++z) {
+      if (c.dim() == 2) row.push_back(c[l][z].item<double>());
+      else row.push_back({c[l][z][0].item<double>(), c[l][z][1].item<double>()});
+    }
+    j.push_back(row);
+  }
+  return j;
+}
+
+// mismatch.json without the reference's part.
+Json mismatch_json(const optics::PsfMismatch& mm, const CalibratedSlices& s, const Config& cfg, bool axis) {
+  Json m;
+  m["rel_l1"] = nested_json(mm.rel_l1);
+  m["rel_l1_mean"] = mm.rel_l1.mean().item<double>();
+  m["rel_l1_max"] = mm.rel_l1.max().item<double>();
+  m["centroid_shift_px"] = nested_json(mm.centroid_shift_px);
+  m["tail_energy_measured"] = nested_json(mm.tail_measured);
+  m["tail_energy_simulated"] = nested_json(mm.tail_simulated);
+  m["core_radius_px"] = nested_json(mm.core_radius_px);
+  m["snr"] = nested_json(s.snr);
+  m["energy_in_window"] = nested_json(s.energy);
+  m["energy_in_window_mean"] = s.energy.mean().item<double>();
+  m["background_counts"] = nested_json(s.background);
+  m["hot_pixels"] = nested_json(s.hot);
+  m["wavelengths_nm"] = cfg.optics.wavelengths_nm;
+  m["depths_m"] = cfg.optics.depths_m;
+  m["registration"] = axis ? "axis" : "centroid";
+  m["_note"] = "rel_l1: sum |measured - simulated| / sum simulated per (band, depth); centroid_shift_px: centroid of the measured "
+               "window minus the simulated one's, (row, col); tail_energy: light outside the radius holding 80 % of the "
+               "simulated PSF (0.2 for the simulated one); snr: peak over the noise sigma of each capture; energy_in_window: the "
+               "dark-subtracted light in the window over the frame's.";
+  return m;
+}
+
+// The log's table: per band (rows) and depth (columns) relative L1 | tail energy measured/simulated | SNR.
+std::string mismatch_table(const optics::PsfMismatch& mm, const torch::Tensor& snr, const std::vector<double>& wavelengths_nm) {
+  std::string table = "measured against simulated, per band (rows) and depth (columns): relative L1 | tail energy measured/simulated | SNR";
+  char buf[96];
+  for (int64_t l = 0; l < mm.rel_l1.size(0); ++l) {
+    std::snprintf(buf, sizeof buf, "\n  %4.0f nm ", wavelengths_nm[size_t(l)]);
+    table += buf;
+    for (int64_t z = 0; z < mm.rel_l1.size(1); ++z) {
+      std::snprintf(buf, sizeof buf, "  %.3f|%.2f/%.2f|%.0f", mm.rel_l1[l][z].item<double>(), mm.tail_measured[l][z].item<double>(),
+                    mm.tail_simulated[l][z].item<double>(), snr[l][z].item<double>());
+      table += buf;
+    }
+  }
+  return table;
+}
+
 int calibrate(const AppArgs& args, const Config& cfg) {
   const std::string dir = args.option("--captures", "");
   const data::CaptureSet caps = data::read_capture_set(dir);
@@ -168,121 +257,52 @@ int calibrate(const AppArgs& args, const Config& cfg) {
   if (K.registration != Registration::centroid && caps.axis_px) axis = caps.axis_px;
   const auto material = optics::Material::load(cfg.optics.material);
   const optics::Doe doe = optics::make_doe(cfg.optics, material, cfg.seed, torch::kCPU);  // reads DOE files: may fail
-  const int64_t P = cfg.optics.psf_size, L = int64_t(caps.wavelengths_nm.size()), Z = int64_t(caps.depths_m.size());
+  const int64_t P = cfg.optics.psf_size;
   make_dirs(args.out_dir);
   check_output_paths({args.out_dir + "/psf.pt", args.out_dir + "/mismatch.json", args.out_dir + "/mismatch.png",
                       args.out_dir + "/config.json"});
   torch::Tensor dark, reference;
   if (!caps.dark.empty()) dark = data::read_capture_frames(caps.dark).counts;
-  if (args.has("--reference")) {
-    const std::string ref = args.option("--reference", "");
-    reference = optics::psf_for_config(optics::read_psf_file(ref), cfg.optics, ref, "--reference", torch::kCPU);
-  }
+  const std::string ref = args.option("--reference", "");
+  if (args.has("--reference")) reference = optics::psf_for_config(optics::read_psf_file(ref), cfg.optics, ref, "--reference", torch::kCPU);
   if (K.background == CaptureBackground::dark && caps.dark.empty())
     input_error(json, "calibration.background = \"dark\" needs the key dark (frames taken with the source off)");
   const bool ring_background = K.background == CaptureBackground::ring || (K.background == CaptureBackground::automatic && caps.dark.empty());
   setup_threads(cfg.threads, /*print=*/false);
-  torch::Tensor psf = torch::zeros({L, Z, P, P}, torch::kFloat64);
-  torch::Tensor bg = torch::zeros({L, Z}, torch::kFloat64), sigma = torch::zeros({L, Z}, torch::kFloat64);
-  torch::Tensor snr = torch::zeros({L, Z}, torch::kFloat64), energy = torch::zeros({L, Z}, torch::kFloat64);
-  torch::Tensor centroid = torch::zeros({L, Z, 2}, torch::kFloat64), hot = torch::zeros({L, Z}, torch::kInt64);
-  {  // every capture is read and checked before anything is printed (a bad one is exit 2 with one line)
-    for (int64_t l = 0; l < L; ++l)
-      for (int64_t z = 0; z < Z; ++z) {
-        const auto& files = caps.files[size_t(l)][size_t(z)];
-        const data::CaptureFrame fr = data::read_capture_frames(files);
-        const double sat = caps.saturation >= 0 ? caps.saturation : fr.saturation;
-        const optics::CapturedPsf c = optics::calibrate_capture(fr.counts, dark, P, K, sat, axis, files.front(), ring_background);
-        psf[l][z].copy_(c.psf);
-        bg[l][z] = c.background, sigma[l][z] = c.noise_sigma, snr[l][z] = c.snr, energy[l][z] = c.energy_in_window;
-        centroid[l][z][0] = c.centroid_px.first, centroid[l][z][1] = c.centroid_px.second;
-        hot[l][z] = c.hot_pixels;
-      }
-  }
+  const CalibratedSlices s = calibrate_slices(caps, dark, P, K, axis, ring_background);
   setup_threads(cfg.threads);  // prints the thread count
-  log::info(std::string("calibrated ") + std::to_string(L * Z) + " slices; background: " +
+  log::info(std::string("calibrated ") + std::to_string(s.psf.size(0) * s.psf.size(1)) + " slices; background: " +
             (ring_background ? "the median of each frame's outer ring" : "the dark frames (source off) hold all of it") +
             "; registration: " +
             (axis ? "to the optical axis at (" + c10::str(axis->first) + ", " + c10::str(axis->second) + ") px (captures.json axis_px)"
                   : std::string("each slice centred on its centroid")));
-  const torch::Tensor height = doe.height().detach();
-  const torch::Tensor sim = simulate(cfg, material, height, P, "simulated PSFs");
-  const optics::PsfMismatch mm = optics::compare_psfs(psf, sim);
-  const optics::PsfSpec spec = optics::make_psf_spec(cfg.optics, material, torch::kCPU);
-
-  TensorDict entries = psf_entries(cfg, material, psf, torch::Tensor());  // the captured DOE's height is not known
-  entries["energy_in_window"] = energy.to(torch::kFloat32);
-  entries["background_counts"] = bg;
-  entries["noise_sigma_counts"] = sigma;
-  entries["snr"] = snr;
-  entries["centroid_px"] = centroid;
-  entries["hot_pixels"] = hot;
-  auto nested = [](const torch::Tensor& t) {
-    Json j = Json::array();
-    const torch::Tensor c = t.to(torch::kFloat64).contiguous();
-    for (int64_t l = 0; l < c.size(0); ++l) {
-      Json row = Json::array();
-      for (int64_t z = 0; z < c.size(1); ++z) {
-        if (c.dim() == 2) row.push_back(c[l][z].item<double>());
-        else row.push_back({c[l][z][0].item<double>(), c[l][z][1].item<double>()});
-      }
-      j.push_back(row);
-    }
-    return j;
-  };
-  Json m;
-  m["rel_l1"] = nested(mm.rel_l1);
-  m["rel_l1_mean"] = mm.rel_l1.mean().item<double>();
-  m["rel_l1_max"] = mm.rel_l1.max().item<double>();
-  m["centroid_shift_px"] = nested(mm.centroid_shift_px);
-  m["tail_energy_measured"] = nested(mm.tail_measured);
-  m["tail_energy_simulated"] = nested(mm.tail_simulated);
-  m["core_radius_px"] = nested(mm.core_radius_px);
-  m["snr"] = nested(snr);
-  m["energy_in_window"] = nested(energy);
-  m["energy_in_window_mean"] = energy.mean().item<double>();
-  m["background_counts"] = nested(bg);
-  m["hot_pixels"] = nested(hot);
-  m["wavelengths_nm"] = cfg.optics.wavelengths_nm;
-  m["depths_m"] = cfg.optics.depths_m;
-  m["registration"] = axis ? "axis" : "centroid";
-  m["_note"] = "rel_l1: sum |measured - simulated| / sum simulated per (band, depth); centroid_shift_px: centroid of the measured "
-               "window minus the simulated one's, (row, col); tail_energy: light outside the radius holding 80 % of the "
-               "simulated PSF (0.2 for the simulated one); snr: peak over the noise sigma of each capture; energy_in_window: the "
-               "dark-subtracted light in the window over the frame's.";
+  const torch::Tensor sim = simulate(cfg, material, doe.height().detach(), P, "simulated PSFs");
+  const optics::PsfMismatch mm = optics::compare_psfs(s.psf, sim);
+  TensorDict entries = psf_entries(cfg, material, s.psf, torch::Tensor());  // the captured DOE's height is not known
+  entries["energy_in_window"] = s.energy.to(torch::kFloat32);
+  entries["background_counts"] = s.background;
+  entries["noise_sigma_counts"] = s.sigma;
+  entries["snr"] = s.snr;
+  entries["centroid_px"] = s.centroid;
+  entries["hot_pixels"] = s.hot;
+  Json m = mismatch_json(mm, s, cfg, bool(axis));
   if (reference.defined()) {  // e.g. the synthetic captures' truth_psf.pt: how close the calibration came
-    const std::string ref = args.option("--reference", "");
-    const torch::Tensor d = optics::compare_psfs(psf, reference).rel_l1;
+    const torch::Tensor d = optics::compare_psfs(s.psf, reference).rel_l1;
     m["reference"] = ref;
-    m["reference_rel_l1"] = nested(d);
+    m["reference_rel_l1"] = nested_json(d);
     m["reference_rel_l1_mean"] = d.mean().item<double>();
     m["reference_rel_l1_max"] = d.max().item<double>();
-    char line[200];
-    std::snprintf(line, sizeof line, "against the reference %s: relative L1 mean %.4f, max %.4f", ref.c_str(),
-                  d.mean().item<double>(), d.max().item<double>());
-    log::info(line);
+    log::info(format("against the reference %s: relative L1 mean %.4f, max %.4f", ref.c_str(), d.mean().item<double>(),
+                     d.max().item<double>()));
   }
   optics::write_psf_file(args.out_dir + "/psf.pt", entries, "measured");
   write_text_file(args.out_dir + "/mismatch.json", m.dump(2) + "\n");
-  write_mismatch_png(args.out_dir + "/mismatch.png", psf, sim, spec);
+  write_mismatch_png(args.out_dir + "/mismatch.png", s.psf, sim, optics::make_psf_spec(cfg.optics, material, torch::kCPU));
   write_resolved_config(cfg, args.out_dir);
-  std::string table = "measured against simulated, per band (rows) and depth (columns): relative L1 | tail energy measured/simulated | SNR";
-  char buf[96];
-  for (int64_t l = 0; l < L; ++l) {
-    std::snprintf(buf, sizeof buf, "\n  %4.0f nm ", cfg.optics.wavelengths_nm[size_t(l)]);
-    table += buf;
-    for (int64_t z = 0; z < Z; ++z) {
-      std::snprintf(buf, sizeof buf, "  %.3f|%.2f/%.2f|%.0f", mm.rel_l1[l][z].item<double>(), mm.tail_measured[l][z].item<double>(),
-                    mm.tail_simulated[l][z].item<double>(), snr[l][z].item<double>());
-      table += buf;
-    }
-  }
-  log::info(table);
-  char summary[256];
-  std::snprintf(summary, sizeof summary, "relative L1 mean %.4f, max %.4f; light in the window %.1f %% of the frame's (mean); %lld hot pixels replaced",
-                m["rel_l1_mean"].get<double>(), m["rel_l1_max"].get<double>(), 100.0 * energy.mean().item<double>(),
-                (long long)hot.sum().item<int64_t>());
-  log::info(summary);
+  log::info(mismatch_table(mm, s.snr, cfg.optics.wavelengths_nm));
+  log::info(format("relative L1 mean %.4f, max %.4f; light in the window %.1f %% of the frame's (mean); %lld hot pixels replaced",
+                   m["rel_l1_mean"].get<double>(), m["rel_l1_max"].get<double>(), 100.0 * s.energy.mean().item<double>(),
+                   (long long)s.hot.sum().item<int64_t>()));
   log::info("wrote " + args.out_dir + "/psf.pt (use it: --set optics.psf_source=\\\"file:" + args.out_dir +
             "/psf.pt\\\"), mismatch.json, mismatch.png, config.json");
   return 0;

@@ -29,6 +29,36 @@ namespace {
 
 const char* kUsage = usage::kText;
 
+// The log's summary: the mean metrics with the baselines beside each, their
+// ratios, and the depth's effective resolution.
+void log_summary(const train::EvalResult& r, const std::string& split) {
+  char buf[500];
+  const auto& a = r.mean;
+  std::snprintf(buf, sizeof buf,
+                "mean over %zu %s scenes (baselines in brackets): HS PSNR %.2f dB (upsampling alone %.2f dB; Wiener "
+                "deconvolution + upsampling %.2f dB), SSIM %.4f (%.4f; %.4f); depth RMSE %.4f m (constant depth %.4f m), "
+                "MAE %.4f m (%.4f m)",
+                r.scenes.size(), split.c_str(), a.hs_psnr_db, a.baseline_upsampling_hs_psnr_db,
+                a.baseline_wiener_hs_psnr_db, a.hs_ssim, a.baseline_upsampling_hs_ssim, a.baseline_wiener_hs_ssim,
+                a.depth_rmse_m, a.baseline_constant_depth_rmse_m, a.depth_mae_m, a.baseline_constant_depth_mae_m);
+  log::info(buf);
+  if (std::isfinite(a.baseline_constant_depth_rmse_m) && a.baseline_constant_depth_rmse_m > 0) {
+    std::snprintf(buf, sizeof buf,
+                  "against the baselines: depth RMSE %.2f x the constant's; HS PSNR %+.2f dB over upsampling alone, "
+                  "%+.2f dB over Wiener + upsampling",
+                  a.depth_rmse_m / a.baseline_constant_depth_rmse_m, a.hs_psnr_db - a.baseline_upsampling_hs_psnr_db,
+                  a.hs_psnr_db - a.baseline_wiener_hs_psnr_db);
+    log::info(buf);
+  }
+  if (!std::isnan(a.depth_effective_resolution_px)) {
+    std::snprintf(buf, sizeof buf,
+                  "the depth RMSE equals that of the true depth averaged over a box of %s (the resolution oracle, "
+                  "report.md): depth structure finer than that is not recovered",
+                  train::effective_resolution_text(a.depth_effective_resolution_px).c_str());
+    log::info(buf);
+  }
+}
+
 int run(const AppArgs& args) {
   std::vector<std::string> overrides = args.overrides;
   if (args.has("--data")) {
@@ -83,31 +113,7 @@ int run(const AppArgs& args) {
     r = train::evaluate(sim, sensor, h, net, cfg, split, args.out_dir, inv, camera ? camera : own, model_psf);
   }
   write_resolved_config(cfg, args.out_dir);
-  char buf[500];
-  const auto& a = r.mean;
-  std::snprintf(buf, sizeof buf,
-                "mean over %zu %s scenes (baselines in brackets): HS PSNR %.2f dB (upsampling alone %.2f dB; Wiener "
-                "deconvolution + upsampling %.2f dB), SSIM %.4f (%.4f; %.4f); depth RMSE %.4f m (constant depth %.4f m), "
-                "MAE %.4f m (%.4f m)",
-                r.scenes.size(), split.c_str(), a.hs_psnr_db, a.baseline_upsampling_hs_psnr_db,
-                a.baseline_wiener_hs_psnr_db, a.hs_ssim, a.baseline_upsampling_hs_ssim, a.baseline_wiener_hs_ssim,
-                a.depth_rmse_m, a.baseline_constant_depth_rmse_m, a.depth_mae_m, a.baseline_constant_depth_mae_m);
-  log::info(buf);
-  if (std::isfinite(a.baseline_constant_depth_rmse_m) && a.baseline_constant_depth_rmse_m > 0) {
-    std::snprintf(buf, sizeof buf,
-                  "against the baselines: depth RMSE %.2f x the constant's; HS PSNR %+.2f dB over upsampling alone, "
-                  "%+.2f dB over Wiener + upsampling",
-                  a.depth_rmse_m / a.baseline_constant_depth_rmse_m, a.hs_psnr_db - a.baseline_upsampling_hs_psnr_db,
-                  a.hs_psnr_db - a.baseline_wiener_hs_psnr_db);
-    log::info(buf);
-  }
-  if (!std::isnan(a.depth_effective_resolution_px)) {
-    std::snprintf(buf, sizeof buf,
-                  "the depth RMSE equals that of the true depth averaged over a box of %s (the resolution oracle, "
-                  "report.md): depth structure finer than that is not recovered",
-                  train::effective_resolution_text(a.depth_effective_resolution_px).c_str());
-    log::info(buf);
-  }
+  log_summary(r, split);
   log::info("wrote " + args.out_dir + "/metrics.json, report.md and pictures");
   return 0;
 }

@@ -41,7 +41,7 @@ int run(const AppArgs& args) {
   model::ExportMetadata meta;
   meta.wavelengths_m = cfg.optics.wavelengths_m();
   meta.strings = {{"camera", cfg.sensor.camera},
-                  {"doe_init", cfg.optics.doe.init},
+                  {"doe_init", choice_word(cfg.optics.doe.init, cfg.optics.doe.init_path)},
                   {"config_sha", sha.str()},
                   {"hsd_version", HSD_VERSION},
                   {"checkpoint", ckpt}};

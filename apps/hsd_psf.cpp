@@ -125,7 +125,7 @@ int run(const AppArgs& args) {
 
   std::string nodes;
   for (int n : spec.pixel_nodes) nodes += std::to_string(n) + " ";
-  log::info("DOE: " + cfg.optics.doe.init + ", " + std::to_string(spec.doe_samples) + "x" + std::to_string(spec.doe_samples) +
+  log::info("DOE: " + choice_word(cfg.optics.doe.init, cfg.optics.doe.init_path) + ", " + std::to_string(spec.doe_samples) + "x" + std::to_string(spec.doe_samples) +
             " samples, max height " + std::to_string(doe.max_height_m() * 1e6) + " um; pixel quadrature nodes per band: " + nodes);
 
   if (cfg.optics.field_angle_deg != 0.0) return run_off_axis(args, cfg, spec, height);

@@ -71,7 +71,7 @@ int run(const AppArgs& args) {
   const optics::PsfSimulator sim(spec);
   const optics::SensorModel model = optics::make_sensor_model(cfg.sensor, spec, cfg.optics.band_width_m());
   const torch::Tensor height = optics::make_doe(cfg.optics, material, cfg.seed, device).height().detach();
-  if (fixed) log::info("imaging through the fixed PSFs of optics.psf_source = " + cfg.optics.psf_source);
+  if (fixed) log::info("imaging through the fixed PSFs of optics.psf_source = " + choice_word(cfg.optics.psf_source, cfg.optics.psf_path));
   auto gen = at::detail::createCPUGenerator(cfg.seed);
   const double t_setup = since();
 

@@ -186,8 +186,8 @@ int setup_threads(int64_t requested, bool print) {
   return torch::get_num_threads();
 }
 
-torch::Device resolve_device(const std::string& name) {
-  if (name == "cuda") {
+torch::Device resolve_device(ComputeDevice device) {
+  if (device == ComputeDevice::cuda) {
     if (!torch::cuda::is_available())
       input_error("config key device", "\"cuda\" requested but this LibTorch build has no usable CUDA device");
     return torch::Device(torch::kCUDA);

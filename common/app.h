@@ -65,8 +65,8 @@ int run_app(const AppSpec& spec, int argc, char** argv, const std::function<int(
 
 // Sets torch's intra-op threads (0 = all cores) and prints "threads: N".
 int setup_threads(int64_t requested, bool print = true);
-// "cpu" or "cuda" -> torch::Device; InputError if CUDA is asked for but absent.
-torch::Device resolve_device(const std::string& name);
+// The config's device -> torch::Device; InputError if CUDA is asked for but absent.
+torch::Device resolve_device(ComputeDevice device);
 
 // Writes DIR/config.json (the fully resolved config) atomically.
 void write_resolved_config(const Config& cfg, const std::string& out_dir);

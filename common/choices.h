@@ -10,6 +10,7 @@
 #include <cstddef>
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "common/json_reader.h"
 
@@ -49,6 +50,18 @@ enum class TrainPrecision { float32, bfloat16, automatic };
 // calibration.registration and calibration.background (hsd_calibrate).
 enum class Registration { automatic, centroid, axis };
 enum class CaptureBackground { automatic, dark, ring };
+// device: where tensors live (a CUDA build of LibTorch for "cuda").
+enum class ComputeDevice { cpu, cuda };
+// data.generator.layouts: the scene layouts (data/textured_scene.h).
+enum class SceneLayout { tabletop, dead_leaves, classic_tabletop };
+// fisher.nuisance lists parameters unknown besides (1/z, λ): the source's
+// position x, y and its brightness N (optics/fisher.h).
+enum class NuisanceParam { x, y, N };
+// Choices whose last value names a file, written "file:PATH" (read_choice_or_file):
+// optics.doe.init, a height-map family or a height-map file;
+enum class DoeFamily { fresnel, spiral, fisher, flat, random, file };
+// optics.psf_source, the DOE's simulated PSFs, the all-in-focus control or a PSF file.
+enum class PsfSource { simulator, all_in_focus, file };
 
 template <class E, size_t N>
 using ChoiceTable = std::array<std::pair<E, const char*>, N>;
@@ -108,6 +121,23 @@ constexpr ChoiceTable<Registration, 3> choice_names(Registration) {
 constexpr ChoiceTable<CaptureBackground, 3> choice_names(CaptureBackground) {
   return {{{CaptureBackground::automatic, "auto"}, {CaptureBackground::dark, "dark"}, {CaptureBackground::ring, "ring"}}};
 }
+constexpr ChoiceTable<ComputeDevice, 2> choice_names(ComputeDevice) {
+  return {{{ComputeDevice::cpu, "cpu"}, {ComputeDevice::cuda, "cuda"}}};
+}
+constexpr ChoiceTable<SceneLayout, 3> choice_names(SceneLayout) {
+  return {{{SceneLayout::tabletop, "tabletop"}, {SceneLayout::dead_leaves, "dead_leaves"},
+           {SceneLayout::classic_tabletop, "classic_tabletop"}}};
+}
+constexpr ChoiceTable<NuisanceParam, 3> choice_names(NuisanceParam) {
+  return {{{NuisanceParam::x, "x"}, {NuisanceParam::y, "y"}, {NuisanceParam::N, "N"}}};
+}
+constexpr ChoiceTable<DoeFamily, 6> choice_names(DoeFamily) {
+  return {{{DoeFamily::fresnel, "fresnel"}, {DoeFamily::spiral, "spiral"}, {DoeFamily::fisher, "fisher"},
+           {DoeFamily::flat, "flat"}, {DoeFamily::random, "random"}, {DoeFamily::file, "file:PATH"}}};
+}
+constexpr ChoiceTable<PsfSource, 3> choice_names(PsfSource) {
+  return {{{PsfSource::simulator, "simulator"}, {PsfSource::all_in_focus, "all_in_focus"}, {PsfSource::file, "file:PATH"}}};
+}
 
 // The config's word for e.
 template <class E>
@@ -126,12 +156,60 @@ std::string choice_list() {
   return s;
 }
 
+// The choice a word names; false when it names none.
+template <class E>
+bool choice_of(const std::string& word, E* out) {
+  for (const auto& [v, name] : choice_names(E{}))
+    if (word == name) return *out = v, true;
+  return false;
+}
+
 // The choice at `key` (fallback when absent); InputError naming the key otherwise.
 template <class E>
 E read_choice(const JsonReader& r, const std::string& key, E fallback) {
   const std::string word = r.get_string(key, choice_name(fallback));
+  E v;
+  if (!choice_of(word, &v)) r.fail(key, "expected " + choice_list<E>() + ", got \"" + word + "\"");
+  return v;
+}
+
+// A list of distinct choices at `key` (fallback when absent); InputError
+// naming the key for an unknown or repeated word.
+template <class E>
+std::vector<E> read_choice_list(const JsonReader& r, const std::string& key, const std::vector<E>& fallback) {
+  if (!r.has(key)) return fallback;
+  std::vector<E> out;
+  for (const std::string& word : r.get_string_array(key)) {
+    E v;
+    if (!choice_of(word, &v)) r.fail(key, "\"" + word + "\" is not one of " + choice_list<E>());
+    for (E u : out)
+      if (u == v) r.fail(key, "lists \"" + word + "\" twice");
+    out.push_back(v);
+  }
+  return out;
+}
+
+// The config's word for a choice with a file: "file:" + path for E::file.
+template <class E>
+std::string choice_word(E e, const std::string& path) {
+  return e == E::file ? "file:" + path : choice_name(e);
+}
+
+// A choice whose value E::file is written "file:PATH": the value at `key`
+// (fallback and fallback_path when absent), its path in *path (empty unless
+// E::file); InputError naming the key for any other word or an empty path.
+template <class E>
+E read_choice_or_file(const JsonReader& r, const std::string& key, E fallback, const std::string& fallback_path,
+                      std::string* path) {
+  const std::string word = r.get_string(key, choice_word(fallback, fallback_path));
+  path->clear();
+  if (word.rfind("file:", 0) == 0) {
+    if (word.size() == 5) r.fail(key, "\"file:\" needs a path after the colon");
+    *path = word.substr(5);
+    return E::file;
+  }
   for (const auto& [v, name] : choice_names(E{}))
-    if (word == name) return v;
+    if (v != E::file && word == name) return v;
   r.fail(key, "expected " + choice_list<E>() + ", got \"" + word + "\"");
 }
 

@@ -40,12 +40,7 @@ int64_t int_in(const JsonReader& r, const std::string& key, int64_t v, int64_t l
 
 DoeConfig parse_doe(const JsonReader& r) {
   DoeConfig d;
-  d.init = r.get_string("init", d.init);
-  const bool known = d.init == "flat" || d.init == "fresnel" || d.init == "spiral" ||
-                     d.init == "fisher" || d.init == "random" ||
-                     (d.init.rfind("file:", 0) == 0 && d.init.size() > 5);
-  if (!known)
-    r.fail("init", "expected fresnel, spiral, fisher, flat, random or file:PATH, got \"" + d.init + "\"");
+  d.init = read_choice_or_file(r, "init", d.init, d.init_path, &d.init_path);
   d.max_height_m = r.get_number_or_null("max_height_m", d.max_height_m);
   if (d.max_height_m < 0.0 || d.max_height_m > 1e-3)
     r.fail("max_height_m", "must be in [0, 1e-3] m (0 = one period at the design wavelength), got " + num(d.max_height_m));
@@ -115,10 +110,7 @@ OpticsConfig parse_optics(const JsonReader& r) {
   o.pupil_oversampling = int_in(r, "pupil_oversampling", o.pupil_oversampling, 1, 8);
   o.pupil_cell_integration = read_choice(r, "pupil_cell_integration", o.pupil_cell_integration);
   o.spectral_samples = int_in(r, "spectral_samples", o.spectral_samples, 1, 9);
-  o.psf_source = r.get_string("psf_source", o.psf_source);
-  if (o.psf_source != "simulator" && o.psf_source != "all_in_focus" && o.psf_source.rfind("file:", 0) != 0)
-    r.fail("psf_source", "expected \"simulator\", \"all_in_focus\" or \"file:PATH\", got \"" + o.psf_source + "\"");
-  if (o.psf_source == "file:") r.fail("psf_source", "\"file:\" needs a path to a psf.pt after the colon");
+  o.psf_source = read_choice_or_file(r, "psf_source", o.psf_source, o.psf_path, &o.psf_path);
   o.field_angle_deg = r.get_number("field_angle_deg", o.field_angle_deg);
   if (!(std::abs(o.field_angle_deg) < 30.0)) r.fail("field_angle_deg", "must be within 30 degrees of the axis");
   o.energy_warn_threshold = r.get_number("energy_warn_threshold", o.energy_warn_threshold);
@@ -126,6 +118,77 @@ OpticsConfig parse_optics(const JsonReader& r) {
     r.fail("energy_warn_threshold", "must be in [0, 1]");
   if (auto d = r.optional_child("doe")) o.doe = parse_doe(*d);
   return o;
+}
+
+// data.generator.layouts: {layout: weight}, at least one weight positive.
+std::vector<std::pair<SceneLayout, double>> parse_layouts(const JsonReader& lr, const JsonReader& generator) {
+  std::vector<std::pair<SceneLayout, double>> layouts;
+  double total = 0;
+  for (const auto& k : lr.keys()) {
+    SceneLayout layout;
+    if (!choice_of(k, &layout)) lr.fail(k, "is not a layout (" + choice_list<SceneLayout>() + ")");
+    const double w = lr.get_number(k);
+    if (!(w >= 0.0 && w <= 1e6)) lr.fail(k, "must be a weight in [0, 1e6]");
+    layouts.emplace_back(layout, w);
+    total += w;
+  }
+  if (!(total > 0.0)) generator.fail("layouts", "needs a positive weight for at least one layout");
+  return layouts;
+}
+
+GeneratorConfig parse_generator(const JsonReader& r) {
+  GeneratorConfig g;
+  g.train_scenes = r.get_int("train_scenes", g.train_scenes);
+  g.val_scenes = r.get_int("val_scenes", g.val_scenes);
+  g.test_scenes = r.get_int("test_scenes", g.test_scenes);
+  for (const auto& [k, v] : {std::pair<const char*, int64_t>{"train_scenes", g.train_scenes},
+                             {"val_scenes", g.val_scenes}, {"test_scenes", g.test_scenes}})
+    if (v < 0 || v > 100000) r.fail(k, "must be in [0, 100000]");
+  g.width_px = r.get_int("width_px", g.width_px);
+  g.height_px = r.get_int("height_px", g.height_px);
+  if (g.width_px < 16 || g.width_px > 8192) r.fail("width_px", "must be in [16, 8192]");
+  if (g.height_px < 16 || g.height_px > 8192) r.fail("height_px", "must be in [16, 8192]");
+  g.fov_deg = r.get_number("fov_deg", g.fov_deg);
+  if (!(g.fov_deg >= 1.0 && g.fov_deg <= 120.0)) r.fail("fov_deg", "must be in [1, 120] degrees");
+  g.depth_min_m = r.get_number("depth_min_m", g.depth_min_m);
+  g.depth_max_m = r.get_number("depth_max_m", g.depth_max_m);
+  if (!(g.depth_min_m > 0.0)) r.fail("depth_min_m", "must be > 0");
+  if (!(g.depth_max_m > g.depth_min_m * 1.2))
+    r.fail("depth_max_m", "must exceed data.generator.depth_min_m by at least 20 %");
+  g.objects_min = r.get_int("objects_min", g.objects_min);
+  g.objects_max = r.get_int("objects_max", g.objects_max);
+  if (g.objects_min < 0 || g.objects_min > 64) r.fail("objects_min", "must be in [0, 64]");
+  if (g.objects_max < g.objects_min || g.objects_max > 64) r.fail("objects_max", "must be in [objects_min, 64]");
+  g.colorchecker = r.get_bool("colorchecker", g.colorchecker);
+  g.colorchecker_depth_m = r.get_number("colorchecker_depth_m", g.colorchecker_depth_m);
+  if (!(g.colorchecker_depth_m > 0.0 && g.colorchecker_depth_m < g.depth_max_m))
+    r.fail("colorchecker_depth_m", "must be in (0, data.generator.depth_max_m)");
+  g.half = r.get_bool("half", g.half);
+  if (auto lr = r.optional_child("layouts")) g.layouts = parse_layouts(*lr, r);
+  g.texture_dir = r.get_string("texture_dir", g.texture_dir);
+  if (!g.texture_dir.empty() && !std::filesystem::is_directory(g.texture_dir))
+    r.fail("texture_dir", "\"" + g.texture_dir + "\" is not a folder (\"\" = the shipped data/textures)");
+  g.texture_scale_min = r.get_number("texture_scale_min", g.texture_scale_min);
+  g.texture_scale_max = r.get_number("texture_scale_max", g.texture_scale_max);
+  if (!(g.texture_scale_min > 0.0 && g.texture_scale_min <= 100.0)) r.fail("texture_scale_min", "must be in (0, 100]");
+  if (!(g.texture_scale_max >= g.texture_scale_min && g.texture_scale_max <= 100.0))
+    r.fail("texture_scale_max", "must be in [texture_scale_min, 100]");
+  g.dead_leaves_max_shapes = r.get_int("dead_leaves_max_shapes", g.dead_leaves_max_shapes);
+  if (g.dead_leaves_max_shapes < 1 || g.dead_leaves_max_shapes > 1000000) r.fail("dead_leaves_max_shapes", "must be in [1, 1e6]");
+  g.dead_leaves_min_radius = r.get_number("dead_leaves_min_radius", g.dead_leaves_min_radius);
+  g.dead_leaves_max_radius = r.get_number("dead_leaves_max_radius", g.dead_leaves_max_radius);
+  if (!(g.dead_leaves_min_radius > 0.0 && g.dead_leaves_min_radius <= 1.0))
+    r.fail("dead_leaves_min_radius", "must be in (0, 1] (a fraction of the smaller image side)");
+  if (!(g.dead_leaves_max_radius >= g.dead_leaves_min_radius && g.dead_leaves_max_radius <= 2.0))
+    r.fail("dead_leaves_max_radius", "must be in [dead_leaves_min_radius, 2]");
+  g.dead_leaves_surface_min_radius = r.get_number("dead_leaves_surface_min_radius", g.dead_leaves_surface_min_radius);
+  if (!(g.dead_leaves_surface_min_radius == 0.0 ||
+        (g.dead_leaves_surface_min_radius >= g.dead_leaves_min_radius && g.dead_leaves_surface_min_radius <= g.dead_leaves_max_radius)))
+    r.fail("dead_leaves_surface_min_radius", "must be 0 (off) or in [dead_leaves_min_radius, dead_leaves_max_radius]");
+  g.spectral_exclusion = r.get_number("spectral_exclusion", g.spectral_exclusion);
+  if (!(g.spectral_exclusion >= 0.0 && g.spectral_exclusion <= 0.2))
+    r.fail("spectral_exclusion", "must be in [0, 0.2] (relative shape distance to a ColorChecker patch)");
+  return g;
 }
 
 DataConfig parse_data(const JsonReader& d) {
@@ -144,71 +207,7 @@ DataConfig parse_data(const JsonReader& d) {
   c.patches = d.get_int("patches", c.patches);
   if (c.patches < 1) d.fail("patches", "must be >= 1");
   c.loader_threads = int_in(d, "loader_threads", c.loader_threads, 0, 256, " (0 = all cores)");
-  if (auto gr = d.optional_child("generator")) {
-    auto& g = c.generator;
-    g.train_scenes = gr->get_int("train_scenes", g.train_scenes);
-    g.val_scenes = gr->get_int("val_scenes", g.val_scenes);
-    g.test_scenes = gr->get_int("test_scenes", g.test_scenes);
-    for (const auto& [k, v] : {std::pair<const char*, int64_t>{"train_scenes", g.train_scenes},
-                               {"val_scenes", g.val_scenes}, {"test_scenes", g.test_scenes}})
-      if (v < 0 || v > 100000) gr->fail(k, "must be in [0, 100000]");
-    g.width_px = gr->get_int("width_px", g.width_px);
-    g.height_px = gr->get_int("height_px", g.height_px);
-    if (g.width_px < 16 || g.width_px > 8192) gr->fail("width_px", "must be in [16, 8192]");
-    if (g.height_px < 16 || g.height_px > 8192) gr->fail("height_px", "must be in [16, 8192]");
-    g.fov_deg = gr->get_number("fov_deg", g.fov_deg);
-    if (!(g.fov_deg >= 1.0 && g.fov_deg <= 120.0)) gr->fail("fov_deg", "must be in [1, 120] degrees");
-    g.depth_min_m = gr->get_number("depth_min_m", g.depth_min_m);
-    g.depth_max_m = gr->get_number("depth_max_m", g.depth_max_m);
-    if (!(g.depth_min_m > 0.0)) gr->fail("depth_min_m", "must be > 0");
-    if (!(g.depth_max_m > g.depth_min_m * 1.2))
-      gr->fail("depth_max_m", "must exceed data.generator.depth_min_m by at least 20 %");
-    g.objects_min = gr->get_int("objects_min", g.objects_min);
-    g.objects_max = gr->get_int("objects_max", g.objects_max);
-    if (g.objects_min < 0 || g.objects_min > 64) gr->fail("objects_min", "must be in [0, 64]");
-    if (g.objects_max < g.objects_min || g.objects_max > 64) gr->fail("objects_max", "must be in [objects_min, 64]");
-    g.colorchecker = gr->get_bool("colorchecker", g.colorchecker);
-    g.colorchecker_depth_m = gr->get_number("colorchecker_depth_m", g.colorchecker_depth_m);
-    if (!(g.colorchecker_depth_m > 0.0 && g.colorchecker_depth_m < g.depth_max_m))
-      gr->fail("colorchecker_depth_m", "must be in (0, data.generator.depth_max_m)");
-    g.half = gr->get_bool("half", g.half);
-    if (auto lr = gr->optional_child("layouts")) {
-      g.layouts.clear();
-      double total = 0;
-      for (const auto& k : lr->keys()) {
-        if (k != "tabletop" && k != "dead_leaves" && k != "classic_tabletop")
-          lr->fail(k, "is not a layout (tabletop, dead_leaves, classic_tabletop)");
-        const double w = lr->get_number(k);
-        if (!(w >= 0.0 && w <= 1e6)) lr->fail(k, "must be a weight in [0, 1e6]");
-        g.layouts.emplace_back(k, w);
-        total += w;
-      }
-      if (!(total > 0.0)) gr->fail("layouts", "needs a positive weight for at least one layout");
-    }
-    g.texture_dir = gr->get_string("texture_dir", g.texture_dir);
-    if (!g.texture_dir.empty() && !std::filesystem::is_directory(g.texture_dir))
-      gr->fail("texture_dir", "\"" + g.texture_dir + "\" is not a folder (\"\" = the shipped data/textures)");
-    g.texture_scale_min = gr->get_number("texture_scale_min", g.texture_scale_min);
-    g.texture_scale_max = gr->get_number("texture_scale_max", g.texture_scale_max);
-    if (!(g.texture_scale_min > 0.0 && g.texture_scale_min <= 100.0)) gr->fail("texture_scale_min", "must be in (0, 100]");
-    if (!(g.texture_scale_max >= g.texture_scale_min && g.texture_scale_max <= 100.0))
-      gr->fail("texture_scale_max", "must be in [texture_scale_min, 100]");
-    g.dead_leaves_max_shapes = gr->get_int("dead_leaves_max_shapes", g.dead_leaves_max_shapes);
-    if (g.dead_leaves_max_shapes < 1 || g.dead_leaves_max_shapes > 1000000) gr->fail("dead_leaves_max_shapes", "must be in [1, 1e6]");
-    g.dead_leaves_min_radius = gr->get_number("dead_leaves_min_radius", g.dead_leaves_min_radius);
-    g.dead_leaves_max_radius = gr->get_number("dead_leaves_max_radius", g.dead_leaves_max_radius);
-    if (!(g.dead_leaves_min_radius > 0.0 && g.dead_leaves_min_radius <= 1.0))
-      gr->fail("dead_leaves_min_radius", "must be in (0, 1] (a fraction of the smaller image side)");
-    if (!(g.dead_leaves_max_radius >= g.dead_leaves_min_radius && g.dead_leaves_max_radius <= 2.0))
-      gr->fail("dead_leaves_max_radius", "must be in [dead_leaves_min_radius, 2]");
-    g.dead_leaves_surface_min_radius = gr->get_number("dead_leaves_surface_min_radius", g.dead_leaves_surface_min_radius);
-    if (!(g.dead_leaves_surface_min_radius == 0.0 ||
-          (g.dead_leaves_surface_min_radius >= g.dead_leaves_min_radius && g.dead_leaves_surface_min_radius <= g.dead_leaves_max_radius)))
-      gr->fail("dead_leaves_surface_min_radius", "must be 0 (off) or in [dead_leaves_min_radius, dead_leaves_max_radius]");
-    g.spectral_exclusion = gr->get_number("spectral_exclusion", g.spectral_exclusion);
-    if (!(g.spectral_exclusion >= 0.0 && g.spectral_exclusion <= 0.2))
-      gr->fail("spectral_exclusion", "must be in [0, 0.2] (relative shape distance to a ColorChecker patch)");
-  }
+  if (auto gr = d.optional_child("generator")) c.generator = parse_generator(*gr);
   return c;
 }
 
@@ -307,13 +306,7 @@ FisherConfig parse_fisher(const JsonReader& f) {
   F.start = read_choice(f, "start", F.start);
   F.steps = int_in(f, "steps", F.steps, 0, 100000);
   F.lr = number_in(f, "lr", F.lr, '(', 0.0, 10.0, ')', " micrometres");
-  if (f.has("nuisance")) F.nuisance = f.get_string_array("nuisance");
-  for (size_t i = 0; i < F.nuisance.size(); ++i) {
-    const std::string& n = F.nuisance[i];
-    if (n != "x" && n != "y" && n != "N") f.fail("nuisance", "\"" + n + "\" is not a parameter (x, y, N)");
-    for (size_t j = 0; j < i; ++j)
-      if (F.nuisance[j] == n) f.fail("nuisance", "lists \"" + n + "\" twice");
-  }
+  F.nuisance = read_choice_list(f, "nuisance", F.nuisance);
   F.aggregate = read_choice(f, "aggregate", F.aggregate);
   F.aggregate_cap = number_in(f, "aggregate_cap", F.aggregate_cap, '(', 0.0, 1e6, ']');
   F.model = read_choice(f, "model", F.model);
@@ -476,8 +469,7 @@ Config parse_config(const Json& resolved, std::vector<std::string>* unlike_defau
   const int64_t seed = r.get_int("seed", 0);
   if (seed < 0) r.fail("seed", "must be >= 0");
   c.seed = uint64_t(seed);
-  c.device = r.get_string("device", c.device);
-  if (c.device != "cpu" && c.device != "cuda") r.fail("device", "expected \"cpu\" or \"cuda\", got \"" + c.device + "\"");
+  c.device = read_choice(r, "device", c.device);
   c.threads = int_in(r, "threads", c.threads, 0, 1024, " (0 = all cores)");
   c.optics = parse_optics(r.child("optics"));
   if (auto s = r.optional_child("sensor")) c.sensor = parse_sensor(*s);

@@ -15,8 +15,9 @@
 namespace hsd {
 
 struct DoeConfig {
-  // "flat" | "fresnel" | "spiral" | "fisher" | "random" | "file:PATH"
-  std::string init = "fresnel";
+  // "fresnel" | "spiral" | "fisher" | "flat" | "random" | "file:PATH"
+  DoeFamily init = DoeFamily::fresnel;
+  std::string init_path;  // the height-map file of init = "file:PATH"
   // Largest height [m]; 0 means one 2π period at the design wavelength,
   // design_wavelength_m / (n(design_wavelength_m) - 1).
   double max_height_m = 0.0;
@@ -65,7 +66,8 @@ struct OpticsConfig {
   // measured by hsd_calibrate or from another tool; its wavelengths, depths,
   // pixel pitch and window must be the config's; the DOE is unused and the
   // network alone is trained, e.g. fine-tuned from train.init_checkpoint).
-  std::string psf_source = "simulator";
+  PsfSource psf_source = PsfSource::simulator;
+  std::string psf_path;  // the PSF file of psf_source = "file:PATH"
   // The point source's angle from the optical axis in the x-z plane [degrees]:
   // hsd_psf then computes the off-axis PSF (optics/off_axis_psf.h: the window
   // centred on the chief ray's image point −s tan θ) and the shift-variance
@@ -108,7 +110,7 @@ struct FisherConfig {
   double lr = 0.02;                   // Adam: micrometres of Zernike coefficient (zernike) or of height (freeform)
   // Unknown besides (1/z, λ), eliminated by the Schur complement (optics/fisher.h):
   // "x", "y" (the point's lateral position), "N" (its brightness); [] = both known.
-  std::vector<std::string> nuisance{"x", "y", "N"};
+  std::vector<NuisanceParam> nuisance{NuisanceParam::x, NuisanceParam::y, NuisanceParam::N};
   // How the per-point bounds become one number (and the design's objective):
   // "capped_mean" (each point capped at aggregate_cap), "median", "mean" (the earlier one).
   CrlbAggregate aggregate = CrlbAggregate::capped_mean;
@@ -288,7 +290,7 @@ struct GeneratorConfig {
   // room geometry), "dead_leaves" (occluding textured shapes over the whole depth
   // range), "classic_tabletop" (the flat-coloured generator of earlier results,
   // ColorChecker-derived spectra; {"classic_tabletop": 1} reproduces it exactly).
-  std::vector<std::pair<std::string, double>> layouts{{"dead_leaves", 0.5}, {"tabletop", 0.5}};
+  std::vector<std::pair<SceneLayout, double>> layouts{{SceneLayout::dead_leaves, 0.5}, {SceneLayout::tabletop, 0.5}};
   std::string texture_dir;                       // photographs for textures; "" = the shipped data/textures
   double texture_scale_min = 0.25, texture_scale_max = 1.25;  // scene pixels per texture pixel (log-uniform)
   int64_t dead_leaves_max_shapes = 4000;         // upper bound on the shapes of one dead-leaves scene
@@ -328,7 +330,7 @@ struct DataConfig {
 
 struct Config {
   uint64_t seed = 0;
-  std::string device = "cpu";  // "cpu" | "cuda"
+  ComputeDevice device = ComputeDevice::cpu;  // "cpu" | "cuda"
   int64_t threads = 0;         // intra-op threads; 0 = all cores
   OpticsConfig optics;
   SensorConfig sensor;
@@ -346,7 +348,7 @@ struct Config {
 // including keys that no part of hsd reads. The structs above hold every
 // default (one source of them); with unlike_defaults, the dotted paths of the
 // scalar keys whose value differs from it are listed there (configs/base.json
-// has none: tests/test_config.cpp).
+// has none: tests/common/test_config.cpp).
 Config parse_config(const Json& resolved, std::vector<std::string>* unlike_defaults = nullptr);
 // load_json_with_extends(path), apply every "--set" override, parse_config.
 Config load_config(const std::string& path, const std::vector<std::string>& overrides);

@@ -61,7 +61,7 @@ class JsonReader {
 
   // From now on, this reader and its children note every key read with a
   // fallback whose value in the file differs from that fallback (the check
-  // that configs/base.json states the structs' defaults: tests/test_config.cpp).
+  // that configs/base.json states the structs' defaults: tests/common/test_config.cpp).
   void record_unlike_fallback();
   std::vector<std::string> unlike_fallback() const;  // dotted paths, in reading order
 

@@ -44,6 +44,66 @@ Json generator_record(const Config& cfg) {
                                 : Json::object()}};
 }
 
+// realism.json and realism.md: the generated scenes' statistics against the
+// CAVE cube's, and their depth structure per layout against real depth maps
+// at the same size and range (depth_structure.h); a summary in the log.
+void write_realism_report(const std::string& dir, const GeneratorConfig& g, const RealismSpec& rspec,
+                          std::vector<SceneRealism> realism,
+                          const std::map<std::string, std::vector<double>>& structure_by_layout) {
+  const RealismSummary sum = summarise_realism(std::move(realism));
+  const SceneRealism ref = cave_realism(rspec);
+  // Depth structure against real depth maps at the same size and range (depth_structure.h).
+  Json rj = realism_json(sum, &ref);
+  std::string md = realism_markdown(sum, &ref);
+  md += "\nDepth structure (the resolution oracle's depth RMSE at a " +
+        std::to_string(structure_window_px(g.height_px, g.width_px)) +
+        "-px box over that of the map's median depth; 0 = smooth at that scale, 1 = no better than a constant): "
+        "real depth maps at this size and depth range against the generated layouts.\n\n| depth map | depth structure |\n|---|---|\n";
+  Json refs = Json::array();
+  double real_sum = 0, real_lo = 1e9, real_hi = -1e9;
+  const auto maps = reference_depth_maps(g.height_px, g.width_px, g.depth_min_m, g.depth_max_m);
+  for (const auto& r : maps) {
+    const double v = depth_structure(r.depth_m, r.mask);
+    real_sum += v, real_lo = std::min(real_lo, v), real_hi = std::max(real_hi, v);
+    refs.push_back(Json{{"name", r.name}, {"depth_structure", v}});
+    char b[160];
+    std::snprintf(b, sizeof b, "| %s (real) | %.2f |\n", r.name.c_str(), v);
+    md += b;
+  }
+  std::string layouts_line;
+  for (const auto& [layout, v] : structure_by_layout) {
+    double s = 0, n = 0;
+    for (double x : v)
+      if (std::isfinite(x)) s += x, n += 1;
+    if (n == 0) continue;
+    char b[160];
+    std::snprintf(b, sizeof b, "| %s (generated, mean of %d) | %.2f |\n", layout.c_str(), int(n), s / n);
+    md += b;
+    std::snprintf(b, sizeof b, "%s%s %.2f", layouts_line.empty() ? "" : ", ", layout.c_str(), s / n);
+    layouts_line += b;
+    rj["depth_structure_by_layout"][layout] = s / n;
+  }
+  rj["depth_structure_references"] = refs;
+  write_text_file(dir + "/realism.json", rj.dump(2) + "\n");
+  write_text_file(dir + "/realism.md", md);
+  log::info("realism of the generated scenes (" + dir + "/realism.md; reference: the CAVE balloons cube):\n" + md);
+  for (const auto& line : check_realism(sum.mean)) log::info("realism: " + line);
+  char b[300];
+  std::snprintf(b, sizeof b, "realism: depth structure %s against real depth maps %.2f .. %.2f (mean %.2f)",
+                layouts_line.c_str(), real_lo, real_hi, real_sum / double(maps.size()));
+  log::info(b);
+}
+
+// colorchecker_layout.json: where each patch of the test chart is.
+void write_colorchecker_layout(const std::string& path, const std::vector<std::array<int64_t, 4>>& boxes,
+                               const std::vector<std::string>& names, double depth_m) {
+  Json patches = Json::array();
+  for (size_t i = 0; i < boxes.size(); ++i)
+    patches.push_back(Json{{"name", names[i]}, {"box_xyxy", {boxes[i][0], boxes[i][1], boxes[i][2], boxes[i][3]}}});
+  write_text_file(path, Json{{"scene", "colorchecker.exr"}, {"illuminant", "D65"}, {"depth_m", depth_m},
+                             {"patches", patches}}.dump(2) + "\n");
+}
+
 }  // namespace
 
 Manifest generate_dataset(const Config& cfg, const std::string& dir, bool cache) {
@@ -53,7 +113,7 @@ Manifest generate_dataset(const Config& cfg, const std::string& dir, bool cache)
   const ReflectanceLibrary lib(bands, bw);  // checks the spectral tables before any output
   // The realistic layouts' sources, loaded only when a layout needs them.
   bool textured = false;
-  for (const auto& [name, w] : g.layouts) textured |= (w > 0 && name != "classic_tabletop");
+  for (const auto& [layout, w] : g.layouts) textured |= (w > 0 && layout != SceneLayout::classic_tabletop);
   std::unique_ptr<MeasuredReflectances> measured;
   std::unique_ptr<TextureBank> textures;
   if (textured) {
@@ -88,13 +148,13 @@ Manifest generate_dataset(const Config& cfg, const std::string& dir, bool cache)
       char stem[64];
       std::snprintf(stem, sizeof stem, "scene_%s_%03lld", name, (long long)i);
       const uint64_t seed = scene_seed(cfg.seed, split, i);
-      const std::string layout = pick_layout(g, seed);
-      GeneratedScene gs = layout == "classic_tabletop" ? generate_tabletop_scene(g, lib, bands, seed)
-                        : layout == "tabletop"
+      const SceneLayout layout = pick_layout(g, seed);
+      GeneratedScene gs = layout == SceneLayout::classic_tabletop ? generate_tabletop_scene(g, lib, bands, seed)
+                        : layout == SceneLayout::tabletop
                             ? generate_textured_tabletop_scene(g, SceneSources{*measured, *textures}, bands, seed)
                             : generate_dead_leaves_scene(g, SceneSources{*measured, *textures}, bands, seed);
       realism.push_back(measure_realism(gs.scene, rspec, stem));
-      structure_by_layout[layout].push_back(realism.back().depth_structure);
+      structure_by_layout[choice_name(layout)].push_back(realism.back().depth_structure);
       write_scene(stem, gs, name);
       progress.step();
     }
@@ -102,59 +162,11 @@ Manifest generate_dataset(const Config& cfg, const std::string& dir, bool cache)
   if (g.colorchecker) {
     std::vector<std::array<int64_t, 4>> boxes;
     write_scene("colorchecker", generate_colorchecker_scene(g, lib, bands, &boxes), "test");
-    Json patches = Json::array();
-    for (size_t i = 0; i < boxes.size(); ++i)
-      patches.push_back(Json{{"name", lib.patch_names()[i]}, {"box_xyxy", {boxes[i][0], boxes[i][1], boxes[i][2], boxes[i][3]}}});
-    write_text_file(dir + "/colorchecker_layout.json",
-                    Json{{"scene", "colorchecker.exr"}, {"illuminant", "D65"}, {"depth_m", g.colorchecker_depth_m},
-                         {"patches", patches}}.dump(2) + "\n");
+    write_colorchecker_layout(dir + "/colorchecker_layout.json", boxes, lib.patch_names(), g.colorchecker_depth_m);
     progress.step();
   }
   progress.finish();
-  if (!realism.empty()) {
-    const RealismSummary sum = summarise_realism(std::move(realism));
-    const SceneRealism ref = cave_realism(rspec);
-    // Depth structure against real depth maps at the same size and range (depth_structure.h).
-    Json rj = realism_json(sum, &ref);
-    std::string md = realism_markdown(sum, &ref);
-    md += "\nDepth structure (the resolution oracle's depth RMSE at a " +
-          std::to_string(structure_window_px(g.height_px, g.width_px)) +
-          "-px box over that of the map's median depth; 0 = smooth at that scale, 1 = no better than a constant): "
-          "real depth maps at this size and depth range against the generated layouts.\n\n| depth map | depth structure |\n|---|---|\n";
-    Json refs = Json::array();
-    double real_sum = 0, real_lo = 1e9, real_hi = -1e9;
-    const auto maps = reference_depth_maps(g.height_px, g.width_px, g.depth_min_m, g.depth_max_m);
-    for (const auto& r : maps) {
-      const double v = depth_structure(r.depth_m, r.mask);
-      real_sum += v, real_lo = std::min(real_lo, v), real_hi = std::max(real_hi, v);
-      refs.push_back(Json{{"name", r.name}, {"depth_structure", v}});
-      char b[160];
-      std::snprintf(b, sizeof b, "| %s (real) | %.2f |\n", r.name.c_str(), v);
-      md += b;
-    }
-    std::string layouts_line;
-    for (const auto& [layout, v] : structure_by_layout) {
-      double s = 0, n = 0;
-      for (double x : v)
-        if (std::isfinite(x)) s += x, n += 1;
-      if (n == 0) continue;
-      char b[160];
-      std::snprintf(b, sizeof b, "| %s (generated, mean of %d) | %.2f |\n", layout.c_str(), int(n), s / n);
-      md += b;
-      std::snprintf(b, sizeof b, "%s%s %.2f", layouts_line.empty() ? "" : ", ", layout.c_str(), s / n);
-      layouts_line += b;
-      rj["depth_structure_by_layout"][layout] = s / n;
-    }
-    rj["depth_structure_references"] = refs;
-    write_text_file(dir + "/realism.json", rj.dump(2) + "\n");
-    write_text_file(dir + "/realism.md", md);
-    log::info("realism of the generated scenes (" + dir + "/realism.md; reference: the CAVE balloons cube):\n" + md);
-    for (const auto& line : check_realism(sum.mean)) log::info("realism: " + line);
-    char b[300];
-    std::snprintf(b, sizeof b, "realism: depth structure %s against real depth maps %.2f .. %.2f (mean %.2f)",
-                  layouts_line.c_str(), real_lo, real_hi, real_sum / double(maps.size()));
-    log::info(b);
-  }
+  if (!realism.empty()) write_realism_report(dir, g, rspec, std::move(realism), structure_by_layout);
   Json record = generator_record(cfg);
   record["written_by"] = cache ? "training (data.generate_if_missing)" : "hsd_scenes";
   write_text_file(dir + "/generator.json", record.dump(2) + "\n");

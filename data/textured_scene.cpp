@@ -151,7 +151,7 @@ GeneratedScene finish(const torch::Tensor& refl, const torch::Tensor& depth, con
 
 }  // namespace
 
-std::string pick_layout(const GeneratorConfig& g, uint64_t seed) {
+SceneLayout pick_layout(const GeneratorConfig& g, uint64_t seed) {
   std::mt19937_64 rng(seed ^ 0xA0761D6478BD642Full);
   double total = 0;
   for (const auto& [name, w] : g.layouts) total += w;

@@ -70,6 +70,6 @@ GeneratedScene generate_dead_leaves_scene(const GeneratorConfig& g, const SceneS
 // stream of its own (the layout's generator still receives `seed` itself, so
 // weights {dead_leaves 0, tabletop 0, classic_tabletop 1} reproduce the classic
 // generator exactly).
-std::string pick_layout(const GeneratorConfig& g, uint64_t seed);
+SceneLayout pick_layout(const GeneratorConfig& g, uint64_t seed);
 
 }  // namespace hsd::data

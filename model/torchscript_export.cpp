@@ -37,12 +37,10 @@ void block_source(std::ostringstream& o, const std::string& var, const std::stri
   }
 }
 
-}  // namespace
-
-torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
+// The network's parameters and batch-norm buffers under flat names, the
+// group sizes of group norm, and the metadata, as the module's attributes.
+void register_weights(torch::jit::Module& m, HsdNet& net, const ExportMetadata& meta) {
   const NetOptions& opt = net->options();
-  torch::jit::Module m("HsdReconstructor");
-  torch::NoGradGuard no_grad;
   for (const auto& p : net->named_parameters()) m.register_parameter(flat(p.key()), p.value().detach().clone(), false);
   for (const auto& b : net->named_buffers())
     if (b.key().find("num_batches_tracked") == std::string::npos) m.register_buffer(flat(b.key()), b.value().detach().clone());
@@ -55,41 +53,48 @@ torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
                        torch::tensor(std::vector<double>{opt.depth_min_m, opt.depth_max_m}, torch::kFloat64));
   for (const auto& [k, v] : meta.strings) m.register_attribute(k, c10::StringType::get(), v);
   for (const auto& [k, v] : meta.numbers) m.register_attribute(k, c10::FloatType::get(), v);
+}
 
+// preinverse(image) and the fast_fft_size it needs: the Wiener pre-inversion
+// (wiener_preinverse.cpp, line for line) with the PSFs of the DOE the network
+// was trained with, fixed from now on.
+void define_preinverse(torch::jit::Module& m, HsdNet& net) {
+  const NetOptions& opt = net->options();
+  if (!net->preinverse_psf().defined())
+    throw InputError("export: the network's pre-inversion PSFs are not set (load a checkpoint first)");
+  m.register_buffer("preinverse_psf", net->preinverse_psf().detach().to(torch::kFloat32).clone());
+  m.define(
+      "def fast_fft_size(self, n: int) -> int:\n"
+      "        m = n\n        done = False\n"
+      "        while not done:\n"
+      "            k = m\n"
+      "            for p in [2, 3, 5]:\n"
+      "                while k % p == 0:\n"
+      "                    k = k // p\n"
+      "            if k == 1:\n                done = True\n            else:\n                m += 1\n"
+      "        return m\n");
+  std::ostringstream w;
+  w << "def preinverse(self, image: Tensor) -> Tensor:\n"
+    << "        B = image.size(0)\n        C = image.size(1)\n        H = image.size(2)\n        W = image.size(3)\n"
+    << "        K = self.preinverse_psf.size(0)\n        P = self.preinverse_psf.size(2)\n        r = P // 2\n"
+    << "        nh = self.fast_fft_size(H + 2 * r)\n        nw = self.fast_fft_size(W + 2 * r)\n"
+    << "        x = torch.replication_pad2d(image, [r, nw - W - r, r, nh - H - r])\n"
+    << "        k = torch.constant_pad_nd(self.preinverse_psf, [0, nw - P, 0, nh - P], 0.0)\n"
+    << "        k = torch.roll(k, [-r, -r], [2, 3])\n"
+    << "        Hf = torch.fft_rfft2(k)\n"
+    << "        power = torch.real(Hf).square() + torch.imag(Hf).square()\n"
+    << "        G = torch.conj(Hf) / (power + " << c10::str(opt.preinverse_reg) << ")\n"
+    << "        Y = torch.fft_rfft2(x).unsqueeze(1)\n"
+    << "        X = torch.fft_irfft2(Y * G.unsqueeze(0), [nh, nw])\n"
+    << "        return X[:, :, :, r:r + H, r:r + W].reshape([B, K * C, H, W])\n";
+  m.define(w.str());
+}
+
+// forward(image) -> (hs, depth): HsdNetImpl::forward (unet.cpp) as TorchScript
+// source, for the network's levels, normalisation and residual.
+std::string forward_source(const NetOptions& opt) {
   const int64_t L = opt.levels, mult = int64_t(1) << L;
   const bool pre = opt.preinverse_layers > 0;
-  if (pre) {
-    // The Wiener pre-inversion (wiener_preinverse.cpp, line for line) with the
-    // PSFs of the DOE the network was trained with, fixed from now on.
-    if (!net->preinverse_psf().defined())
-      throw InputError("export: the network's pre-inversion PSFs are not set (load a checkpoint first)");
-    m.register_buffer("preinverse_psf", net->preinverse_psf().detach().to(torch::kFloat32).clone());
-    m.define(
-        "def fast_fft_size(self, n: int) -> int:\n"
-        "        m = n\n        done = False\n"
-        "        while not done:\n"
-        "            k = m\n"
-        "            for p in [2, 3, 5]:\n"
-        "                while k % p == 0:\n"
-        "                    k = k // p\n"
-        "            if k == 1:\n                done = True\n            else:\n                m += 1\n"
-        "        return m\n");
-    std::ostringstream w;
-    w << "def preinverse(self, image: Tensor) -> Tensor:\n"
-      << "        B = image.size(0)\n        C = image.size(1)\n        H = image.size(2)\n        W = image.size(3)\n"
-      << "        K = self.preinverse_psf.size(0)\n        P = self.preinverse_psf.size(2)\n        r = P // 2\n"
-      << "        nh = self.fast_fft_size(H + 2 * r)\n        nw = self.fast_fft_size(W + 2 * r)\n"
-      << "        x = torch.replication_pad2d(image, [r, nw - W - r, r, nh - H - r])\n"
-      << "        k = torch.constant_pad_nd(self.preinverse_psf, [0, nw - P, 0, nh - P], 0.0)\n"
-      << "        k = torch.roll(k, [-r, -r], [2, 3])\n"
-      << "        Hf = torch.fft_rfft2(k)\n"
-      << "        power = torch.real(Hf).square() + torch.imag(Hf).square()\n"
-      << "        G = torch.conj(Hf) / (power + " << c10::str(opt.preinverse_reg) << ")\n"
-      << "        Y = torch.fft_rfft2(x).unsqueeze(1)\n"
-      << "        X = torch.fft_irfft2(Y * G.unsqueeze(0), [nh, nw])\n"
-      << "        return X[:, :, :, r:r + H, r:r + W].reshape([B, K * C, H, W])\n";
-    m.define(w.str());
-  }
   std::ostringstream o;
   o << "def forward(self, image: Tensor) -> Tuple[Tensor, Tensor]:\n"
     << "        B = image.size(0)\n        C = image.size(1)\n        H = image.size(2)\n        W = image.size(3)\n"
@@ -142,7 +147,17 @@ torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
     << "        inv_near = 1.0 / " << c10::str(opt.depth_min_m) << "\n"
     << "        depth = 1.0 / (inv_far + d * (inv_near - inv_far))\n"
     << "        return (hs, depth)\n";
-  m.define(o.str());
+  return o.str();
+}
+
+}  // namespace
+
+torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
+  torch::jit::Module m("HsdReconstructor");
+  torch::NoGradGuard no_grad;
+  register_weights(m, net, meta);
+  if (net->options().preinverse_layers > 0) define_preinverse(m, net);
+  m.define(forward_source(net->options()));
   m.eval();
   return m;
 }

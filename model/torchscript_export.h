@@ -7,7 +7,7 @@
 // mapping; inputs of any size are padded as HsdNet pads them. The forward
 // pass therefore exists twice, HsdNetImpl::forward (model/unet.cpp) and the
 // source written here (with the Wiener pre-inversion and fast FFT sizes): a
-// change to one must be made in the other; tests/test_export.cpp checks that
+// change to one must be made in the other; tests/model/test_export.cpp checks that
 // both give the same output for every normalisation and residual choice.
 #pragma once
 #include <map>

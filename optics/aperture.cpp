@@ -25,7 +25,7 @@ torch::Tensor aperture_transmission(int64_t n, double pitch_m, double diameter_m
   // wholly inside and one whose nearest is outside wholly outside: only the
   // edge cells (≈ 4·D/δ of them, not N²) are sub-sampled, with the same float
   // sums as the full ss·N × ss·N grid would use, so the result is bitwise the
-  // same (tests/test_psf_closed_forms.cpp) at a fraction of its cost (the full
+  // same (tests/optics/test_psf_closed_forms.cpp) at a fraction of its cost (the full
   // grid is 16.7 M samples at N = 512: ~0.1 s of every simulator's set-up).
   const double r2 = r * r;
   const torch::Tensor x2 = x.pow(2).view({n, ss});  // [N, ss]: squared sub-sample coordinates per cell

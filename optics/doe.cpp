@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <filesystem>
+#include <stdexcept>
 
 #include <torch/torch.h>
 
@@ -87,25 +88,29 @@ torch::Tensor initial_height(const OpticsConfig& cfg, const Material& material, 
   const int64_t n = cfg.doe_samples;
   const double z0 = d.design_depth_m > 0.0 ? d.design_depth_m : middle_depth_m(cfg.depths_m);
   const double hmax = d.max_height_m > 0.0 ? d.max_height_m : one_period_height(cfg, material);
-  if (d.init == "flat") return torch::zeros({n, n}, torch::kFloat64);
-  if (d.init == "fresnel")
-    return fresnel_height(n, cfg.doe_pitch_m, d.design_wavelength_m, material.index(d.design_wavelength_m), z0,
-                          cfg.sensor_distance_m);
-  if (d.init == "spiral") {
-    const auto w = cfg.wavelengths_m();
-    return spiral_height(n, cfg.doe_pitch_m, w.front(), w.back(), d.spiral_wings, material, z0, cfg.sensor_distance_m);
+  switch (d.init) {
+    case DoeFamily::flat:
+      return torch::zeros({n, n}, torch::kFloat64);
+    case DoeFamily::fresnel:
+      return fresnel_height(n, cfg.doe_pitch_m, d.design_wavelength_m, material.index(d.design_wavelength_m), z0,
+                            cfg.sensor_distance_m);
+    case DoeFamily::spiral: {
+      const auto w = cfg.wavelengths_m();
+      return spiral_height(n, cfg.doe_pitch_m, w.front(), w.back(), d.spiral_wings, material, z0, cfg.sensor_distance_m);
+    }
+    case DoeFamily::random:
+      return random_height(n, hmax, seed);
+    case DoeFamily::fisher:
+      if (!std::filesystem::exists(d.fisher_path))
+        input_error("config key optics.doe.init",
+                    "\"fisher\" needs the Fisher design at optics.doe.fisher_path = \"" + d.fisher_path +
+                        "\", which does not exist; run hsd_fisher --config C --out DIR first (it writes "
+                        "DIR/fisher_height.pt) or use \"file:PATH\"");
+      return load_height_file(d.fisher_path, n, cfg.doe_pitch_m);
+    case DoeFamily::file:
+      return load_height_file(d.init_path, n, cfg.doe_pitch_m);
   }
-  if (d.init == "random") return random_height(n, hmax, seed);
-  if (d.init == "fisher") {
-    if (!std::filesystem::exists(d.fisher_path))
-      input_error("config key optics.doe.init",
-                  "\"fisher\" needs the Fisher design at optics.doe.fisher_path = \"" + d.fisher_path +
-                      "\", which does not exist; run hsd_fisher --config C --out DIR first (it writes "
-                      "DIR/fisher_height.pt) or use \"file:PATH\"");
-    return load_height_file(d.fisher_path, n, cfg.doe_pitch_m);
-  }
-  if (d.init.rfind("file:", 0) == 0) return load_height_file(d.init.substr(5), n, cfg.doe_pitch_m);
-  input_error("config key optics.doe.init", "unknown DOE family \"" + d.init + "\"");
+  throw std::logic_error("initial_height: unhandled DOE family");
 }
 
 Doe::Doe(torch::Tensor initial_height_m, double max_height_m, int64_t quantization_levels, double pitch_m)

@@ -119,13 +119,6 @@ Crlb crlb_with_nuisance(const torch::Tensor& fisher, int64_t n_interest) {
   return crlb_from_fisher(schur);
 }
 
-namespace {
-const std::vector<std::string>& nuisance_names() {
-  static const std::vector<std::string> names{"x", "y", "N"};
-  return names;
-}
-}  // namespace
-
 void check_aggregate(const FisherSettings& s) {
   if (!(s.aggregate_cap > 0)) throw InputError("config key fisher.aggregate_cap: must be > 0");
 }
@@ -141,11 +134,8 @@ void set_aggregates(CrlbReport& r, const torch::Tensor& t, const FisherSettings&
 
 CrlbReport crlb_report(const FisherGeometry& g, const Material& material, const torch::Tensor& height_m,
                        const FisherSettings& s) {
-  for (const auto& n : s.nuisance)
-    if (std::find(nuisance_names().begin(), nuisance_names().end(), n) == nuisance_names().end())
-      throw InputError("config key fisher.nuisance: \"" + n + "\" is not a parameter (x, y, N)");
   check_aggregate(s);
-  auto has = [&](const char* n) { return std::find(s.nuisance.begin(), s.nuisance.end(), n) != s.nuisance.end(); };
+  auto has = [&](NuisanceParam n) { return std::find(s.nuisance.begin(), s.nuisance.end(), n) != s.nuisance.end(); };
   CrlbReport r;
   r.wavelengths_nm = s.wavelengths_nm;
   r.nuisance = s.nuisance;
@@ -166,14 +156,14 @@ CrlbReport crlb_report(const FisherGeometry& g, const Material& material, const 
       // In the order of s.nuisance (their order does not change the bound of (D, λ)).
       for (const auto& n : s.nuisance) {
         torch::Tensor p = torch::zeros({}, torch::kFloat64);
-        if (n == "N") p = torch::ones({}, torch::kFloat64);
+        if (n == NuisanceParam::N) p = torch::ones({}, torch::kFloat64);
         p.requires_grad_(true);
-        (n == "x" ? sx : n == "y" ? sy : a) = p;
+        (n == NuisanceParam::x ? sx : n == NuisanceParam::y ? sy : a) = p;
         params.push_back(p);
       }
-      torch::Tensor mu = s.photons * point_psf(g, height_m, D, lam, eta0, deta, has("x") ? sx : torch::Tensor(),
-                                               has("y") ? sy : torch::Tensor());
-      if (has("N")) mu = mu * a;
+      torch::Tensor mu = s.photons * point_psf(g, height_m, D, lam, eta0, deta, has(NuisanceParam::x) ? sx : torch::Tensor(),
+                                               has(NuisanceParam::y) ? sy : torch::Tensor());
+      if (has(NuisanceParam::N)) mu = mu * a;
       const auto J = jacobian_by_autograd(mu, params, design);
       const Crlb c = crlb_with_nuisance(fisher_from_jacobian(mu, J, s.background), 2);
       r.max_condition = std::max(r.max_condition, c.condition);

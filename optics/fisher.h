@@ -96,14 +96,14 @@ struct CrlbReport {
   double aggregate_median = 0;   // median of t (lower median)
   double aggregate_capped = 0;   // mean of min(t, cap)
   torch::Tensor aggregate;  // 0-dim: the one FisherSettings::aggregate names; differentiable in the height map when requested
-  std::vector<std::string> nuisance;
+  std::vector<NuisanceParam> nuisance;
 };
 
 struct FisherSettings {
   double photons = 1e4, background = 10.0;   // per point source image; per pixel
   std::vector<double> wavelengths_nm, depths_m;  // the evaluation grid
   double inv_depth_spacing = 1.0, band_width_nm = 10.0;  // aggregation scales
-  std::vector<std::string> nuisance{"x", "y", "N"};    // unknown besides (D, λ): any of x, y, N
+  std::vector<NuisanceParam> nuisance{NuisanceParam::x, NuisanceParam::y, NuisanceParam::N};  // unknown besides (D, λ)
   CrlbAggregate aggregate = CrlbAggregate::capped_mean;
   double aggregate_cap = 10.0;                         // cap of t per grid point (layers/bands)
 };

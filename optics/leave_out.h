@@ -1,7 +1,7 @@
 // Leaving out what a scene does not need (the user's "leave out what a given
 // scene does not need"): the rules simulate_sensor applies and the two
 // measurements they rest on. Every rule keeps the result equal to the full
-// computation up to its stated bound (tests/test_discretisation.cpp).
+// computation up to its stated bound (tests/optics/test_discretisation.cpp).
 #pragma once
 #include <vector>
 

@@ -17,11 +17,11 @@ PsfProvider fixed_psf_provider(const torch::Tensor& psf) {
 }
 
 std::string psf_file_path(const OpticsConfig& cfg) {
-  return cfg.psf_source.rfind("file:", 0) == 0 ? cfg.psf_source.substr(5) : std::string();
+  return cfg.psf_source == PsfSource::file ? cfg.psf_path : std::string();
 }
 
 torch::Tensor fixed_psf_stack(const OpticsConfig& cfg, const Material& material, torch::Device device) {
-  if (cfg.psf_source == "all_in_focus") return all_in_focus_psf(cfg, material, device);
+  if (cfg.psf_source == PsfSource::all_in_focus) return all_in_focus_psf(cfg, material, device);
   const std::string path = psf_file_path(cfg);
   if (!path.empty()) return psf_for_config(read_psf_file(path), cfg, path, "config key optics.psf_source", device);
   return {};

@@ -47,7 +47,7 @@ CrlbReport scene_crlb_report(const FisherGeometry& g, const Material& material, 
   if (!(scene.corner_cycles_per_px > 0)) throw InputError("scene Fisher information: the corner frequency must be > 0");
   if (scene.patch_px < 8) throw InputError("config key fisher.scene_patch_px: must be >= 8");
   check_aggregate(s);
-  const bool contrast_unknown = std::find(s.nuisance.begin(), s.nuisance.end(), "N") != s.nuisance.end();
+  const bool contrast_unknown = std::find(s.nuisance.begin(), s.nuisance.end(), NuisanceParam::N) != s.nuisance.end();
   const bool design = height_m.requires_grad();
   const int64_t N = scene_dft_size(g.window_px);
   const torch::Tensor S = natural_texture_spectrum(N, scene.corner_cycles_per_px, torch::kFloat64);
@@ -55,7 +55,7 @@ CrlbReport scene_crlb_report(const FisherGeometry& g, const Material& material, 
 
   CrlbReport r;
   r.wavelengths_nm = s.wavelengths_nm;
-  r.nuisance = contrast_unknown ? std::vector<std::string>{"N"} : std::vector<std::string>{};
+  r.nuisance = contrast_unknown ? std::vector<NuisanceParam>{NuisanceParam::N} : std::vector<NuisanceParam>{};
   for (double z : s.depths_m) r.inv_depths.push_back(1.0 / z);
   const int64_t Z = int64_t(s.depths_m.size());
   std::vector<torch::Tensor> cd, terms;

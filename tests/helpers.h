@@ -15,6 +15,7 @@
 
 #include "common/config.h"
 #include "optics/psf.h"
+#include "train/distributed.h"
 #include "train/metrics_csv.h"
 
 namespace hsd::test {
@@ -108,6 +109,18 @@ inline std::pair<std::string, int> capture(const std::string& cmd) {
     code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
   }
   return {out, code};
+}
+
+// hsd_train as two ranks on this host (WORLD_SIZE=2, a free MASTER_PORT), run
+// from the source folder: rank 0 with args0 (its output dropped), rank 1 with
+// args1 (its stderr kept). Returns rank 1's stderr and the lines "rank0=<exit
+// code>" and "rank1=<exit code>".
+inline std::string two_rank_train(const std::string& args0, const std::string& args1) {
+  const std::string env = "WORLD_SIZE=2 MASTER_ADDR=127.0.0.1 MASTER_PORT=" + std::to_string(train::free_local_port());
+  const std::string bin = std::string(HSD_BIN_DIR) + "/hsd_train", src = std::string(HSD_SOURCE_DIR);
+  return capture("cd " + src + " && (env " + env + " RANK=0 " + bin + args0 + " > /dev/null 2>&1; echo \"rank0=$?\") & (cd " +
+                 src + " && env " + env + " RANK=1 " + bin + args1 + " 2>&1 >/dev/null; echo \"rank1=$?\"); wait")
+      .first;
 }
 
 }  // namespace hsd::test

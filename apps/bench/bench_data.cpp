@@ -27,6 +27,38 @@
 
 namespace hsd::bench {
 
+namespace {
+
+// Each layout alone, generation only (no EXR or previews written): mean
+// seconds per scene over 3 seeds.
+std::map<std::string, double> seconds_per_layout(const GeneratorConfig& g, const std::vector<double>& bands, double bw) {
+  const data::ReflectanceLibrary lib(bands, bw);
+  const data::MeasuredReflectances measured(bands, bw, g.spectral_exclusion);
+  const data::TextureBank textures(g.texture_dir.empty() ? data::TextureBank::default_dir() : g.texture_dir);
+  const data::SceneSources src{measured, textures};
+  std::map<std::string, double> t_layout;
+  for (const SceneLayout layout : {SceneLayout::classic_tabletop, SceneLayout::tabletop, SceneLayout::dead_leaves}) {
+    const auto t = std::chrono::steady_clock::now();
+    for (uint64_t s = 1; s <= 3; ++s) {
+      if (layout == SceneLayout::classic_tabletop) data::generate_tabletop_scene(g, lib, bands, s);
+      else if (layout == SceneLayout::tabletop) data::generate_textured_tabletop_scene(g, src, bands, s);
+      else data::generate_dead_leaves_scene(g, src, bands, s);
+    }
+    t_layout[choice_name(layout)] = std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count() / 3.0;
+  }
+  return t_layout;
+}
+
+// The EXR files' size in dir, MiB per scene.
+double exr_mib_per_scene(const std::string& dir, int64_t scenes) {
+  double b = 0;
+  for (const auto& e : std::filesystem::directory_iterator(dir))
+    if (e.path().extension() == ".exr") b += double(e.file_size());
+  return b / double(scenes) / (1024.0 * 1024.0);
+}
+
+}  // namespace
+
 int bench_data(Config cfg, const AppArgs& args, BenchOutput& out) {
   const int64_t scenes = args.integer("--scenes", 8);
   if (scenes < 1 || scenes > 1000) input_error("--scenes", "must be in [1, 1000]");
@@ -45,29 +77,8 @@ int bench_data(Config cfg, const AppArgs& args, BenchOutput& out) {
   data::generate_dataset(cfg, dir);
   const double t_gen = secs(t) / double(scenes);
   const Json realism = Json::parse(read_text_file(dir + "/realism.json"));
-  // Each layout alone, generation only (no EXR or previews written): 3 seeds each.
-  std::map<std::string, double> t_layout;
-  {
-    const data::ReflectanceLibrary lib(bands, bw);
-    const data::MeasuredReflectances measured(bands, bw, g.spectral_exclusion);
-    const data::TextureBank textures(g.texture_dir.empty() ? data::TextureBank::default_dir() : g.texture_dir);
-    const data::SceneSources src{measured, textures};
-    for (const std::string layout : {"classic_tabletop", "tabletop", "dead_leaves"}) {
-      t = clock::now();
-      for (uint64_t s = 1; s <= 3; ++s) {
-        if (layout == "classic_tabletop") data::generate_tabletop_scene(g, lib, bands, s);
-        else if (layout == "tabletop") data::generate_textured_tabletop_scene(g, src, bands, s);
-        else data::generate_dead_leaves_scene(g, src, bands, s);
-      }
-      t_layout[layout] = secs(t) / 3.0;
-    }
-  }
-  const double mib = [&] {
-    double b = 0;
-    for (const auto& e : std::filesystem::directory_iterator(dir))
-      if (e.path().extension() == ".exr") b += double(e.file_size());
-    return b / double(scenes) / (1024.0 * 1024.0);
-  }();
+  const std::map<std::string, double> t_layout = seconds_per_layout(g, bands, bw);
+  const double mib = exr_mib_per_scene(dir, scenes);
   t = clock::now();
   const auto one = data::load_split(dir, "train", bands, bw, 1);
   const double t_load1 = secs(t);
@@ -114,7 +125,7 @@ int bench_data(Config cfg, const AppArgs& args, BenchOutput& out) {
   std::snprintf(b2, sizeof b2,
                 "layouts alone       %8.3f s classic_tabletop, %.3f s tabletop, %.3f s dead_leaves per scene (no writing)\n"
                 "realism (mean)      textured %.3f, PSD slope %.2f, PCs for 99 %% %lld, RGB-unexplained %.3f\n",
-                t_layout["classic_tabletop"], t_layout["tabletop"], t_layout["dead_leaves"], rm["textured_fraction"].get<double>(),
+                t_layout.at("classic_tabletop"), t_layout.at("tabletop"), t_layout.at("dead_leaves"), rm["textured_fraction"].get<double>(),
                 rm["psd_slope"].get<double>(), (long long)rm["pcs_99"].get<int64_t>(), rm["rgb_unexplained"].get<double>());
   out.text += b2;
   for (const auto& line : realism["targets"]) out.text += "  " + line.get<std::string>() + "\n";

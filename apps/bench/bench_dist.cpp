@@ -148,49 +148,17 @@ Json spawn_children(const std::string& config_file, const AppArgs& args, const s
   return slowest;
 }
 
-}  // namespace
-
-int bench_dist(Config cfg, const AppArgs& args, BenchOutput& out) {
-  const int64_t patch = args.integer("--patch", 128), batch = args.integer("--batch", 4), ranks = args.integer("--ranks", 2);
-  const int repeats = int(args.integer("--repeats", 3));
-  if (patch < 16 || patch > 2048) input_error("--patch", "must be in [16, 2048]");
-  if (ranks < 2 || ranks > 64) input_error("--ranks", "must be in [2, 64]");
-  if (batch < ranks || batch % ranks != 0 || batch > 256)
-    input_error("--batch", "must be a multiple of --ranks " + std::to_string(ranks) + " in [" + std::to_string(ranks) + ", 256]");
-  if (repeats < 1) input_error("--repeats", "must be >= 1");
-  if (args.has("--child-mode")) return run_child(cfg, args, batch, patch, repeats);
-
-  const int cores = int(std::max(1u, std::thread::hardware_concurrency()));
-  const int all_threads = torch::get_num_threads();
-  const int rank_threads = std::max(1, cores / int(ranks));
-  // One process, all threads.
-  cfg.train.batch_size = batch;
+// What was measured: the one-process step and each multi-rank mode's slowest rank.
+struct DistRuns {
+  int cores = 0, all_threads = 0, rank_threads = 0;
   double one_s = 0;
-  {
-    log::info("one process, " + std::to_string(all_threads) + " threads ...");
-    train::Trainer t(cfg);
-    const train::Batch b = striped_batch(cfg, batch, patch);
-    int64_t k = 0;
-    one_s = median_seconds([&] { t.step(b, k++); }, repeats);
-  }
-  // The ranks, started as child processes on the resolved config.
-  const auto tmp = std::filesystem::temp_directory_path() / ("hsd_bench_dist_" + std::to_string(::getpid()));
-  std::filesystem::create_directories(tmp);
-  const std::string config_file = (tmp / "config.json").string();
-  Json resolved = cfg.resolved;
-  resolved["distributed"]["timeout_s"] = std::min(cfg.distributed.timeout_s, 60.0);  // a failed rank ends its peer soon
-  write_text_file(config_file, resolved.dump(2));
   Json sync, nosplit, nosync, solo;
-  log::info(std::to_string(ranks) + " ranks x " + std::to_string(rank_threads) + " threads, the defaults ...");
-  sync = spawn_children(config_file, args, "sync", ranks, rank_threads, (tmp / "sync.json").string());
-  log::info(std::to_string(ranks) + " ranks, every rank computing all PSFs ...");
-  nosplit = spawn_children(config_file, args, "nosplit", ranks, rank_threads, (tmp / "nosplit.json").string());
-  log::info(std::to_string(ranks) + " ranks, batch norm per rank ...");
-  nosync = spawn_children(config_file, args, "nosync", ranks, rank_threads, (tmp / "nosync.json").string());
-  log::info(std::to_string(ranks) + " independent processes of one rank's share each (no communication) ...");
-  solo = spawn_children(config_file, args, "solo", ranks, rank_threads, (tmp / "solo.json").string());
-  std::filesystem::remove_all(tmp);
+};
 
+void dist_report(const Config& cfg, int64_t patch, int64_t batch, int64_t ranks, const DistRuns& r, BenchOutput& out) {
+  const int cores = r.cores, all_threads = r.all_threads, rank_threads = r.rank_threads;
+  const double one_s = r.one_s;
+  const Json &sync = r.sync, &nosplit = r.nosplit, &nosync = r.nosync, &solo = r.solo;
   const double sync_s = sync["seconds_per_step"], nosplit_s = nosplit["seconds_per_step"], nosync_s = nosync["seconds_per_step"],
                solo_s = solo["seconds_per_step"];
   out.json = Json{{"bench", "dist"},
@@ -240,6 +208,53 @@ int bench_dist(Config cfg, const AppArgs& args, BenchOutput& out) {
       sync["per_tensor_seconds"].get<double>(),
       sync["per_tensor_seconds"].get<double>() / std::max(1e-12, sync["bucketed_seconds"].get<double>()));
   out.text = buf;
+}
+
+}  // namespace
+
+int bench_dist(Config cfg, const AppArgs& args, BenchOutput& out) {
+  const int64_t patch = args.integer("--patch", 128), batch = args.integer("--batch", 4), ranks = args.integer("--ranks", 2);
+  const int repeats = int(args.integer("--repeats", 3));
+  if (patch < 16 || patch > 2048) input_error("--patch", "must be in [16, 2048]");
+  if (ranks < 2 || ranks > 64) input_error("--ranks", "must be in [2, 64]");
+  if (batch < ranks || batch % ranks != 0 || batch > 256)
+    input_error("--batch", "must be a multiple of --ranks " + std::to_string(ranks) + " in [" + std::to_string(ranks) + ", 256]");
+  if (repeats < 1) input_error("--repeats", "must be >= 1");
+  if (args.has("--child-mode")) return run_child(cfg, args, batch, patch, repeats);
+
+  const int cores = int(std::max(1u, std::thread::hardware_concurrency()));
+  const int all_threads = torch::get_num_threads();
+  const int rank_threads = std::max(1, cores / int(ranks));
+  // One process, all threads.
+  cfg.train.batch_size = batch;
+  double one_s = 0;
+  {
+    log::info("one process, " + std::to_string(all_threads) + " threads ...");
+    train::Trainer t(cfg);
+    const train::Batch b = striped_batch(cfg, batch, patch);
+    int64_t k = 0;
+    one_s = median_seconds([&] { t.step(b, k++); }, repeats);
+  }
+  // The ranks, started as child processes on the resolved config.
+  const auto tmp = std::filesystem::temp_directory_path() / ("hsd_bench_dist_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(tmp);
+  const std::string config_file = (tmp / "config.json").string();
+  Json resolved = cfg.resolved;
+  resolved["distributed"]["timeout_s"] = std::min(cfg.distributed.timeout_s, 60.0);  // a failed rank ends its peer soon
+  write_text_file(config_file, resolved.dump(2));
+  Json sync, nosplit, nosync, solo;
+  log::info(std::to_string(ranks) + " ranks x " + std::to_string(rank_threads) + " threads, the defaults ...");
+  sync = spawn_children(config_file, args, "sync", ranks, rank_threads, (tmp / "sync.json").string());
+  log::info(std::to_string(ranks) + " ranks, every rank computing all PSFs ...");
+  nosplit = spawn_children(config_file, args, "nosplit", ranks, rank_threads, (tmp / "nosplit.json").string());
+  log::info(std::to_string(ranks) + " ranks, batch norm per rank ...");
+  nosync = spawn_children(config_file, args, "nosync", ranks, rank_threads, (tmp / "nosync.json").string());
+  log::info(std::to_string(ranks) + " independent processes of one rank's share each (no communication) ...");
+  solo = spawn_children(config_file, args, "solo", ranks, rank_threads, (tmp / "solo.json").string());
+  std::filesystem::remove_all(tmp);
+
+  const DistRuns runs{cores, all_threads, rank_threads, one_s, sync, nosplit, nosync, solo};
+  dist_report(cfg, patch, batch, ranks, runs, out);
   return 0;
 }
 

@@ -11,6 +11,7 @@
 #include "bench/bench_util.h"
 #include "bench/benches.h"
 #include "common/log.h"
+#include "common/text_format.h"
 #include "optics/doe.h"
 #include "optics/psf.h"
 
@@ -44,6 +45,22 @@ Measured measure(const std::function<torch::Tensor(const torch::Tensor&)>& f, co
   m.rel_l1_mean = err.mean().item<double>();
   m.rel_l1_max = err.max().item<double>();
   return m;
+}
+
+// The table printed: one row per method measured (a null entry is skipped).
+std::string psf_text(const optics::PsfSpec& spec, FloatPrecision precision, double rss_start,
+                     const std::vector<std::pair<const char*, const Measured*>>& rows) {
+  std::string text = "PSF stack: " + std::to_string(spec.wavelengths_m.size()) + " bands x " +
+                     std::to_string(spec.depths_m.size()) + " depths, " + std::to_string(spec.psf_size) + " px window, " +
+                     std::to_string(spec.doe_samples) + "^2 DOE samples, " + choice_name(precision) + ", threads " +
+                     std::to_string(torch::get_num_threads()) + "\n";
+  text += format("process RSS before the runs: %.0f MiB (LibTorch and data); peak RSS below includes it\n", rss_start);
+  text += "method                          fwd [s]  fwd+bwd [s]  peak RSS [MiB]  rel L1 mean  rel L1 worst\n";
+  for (const auto& [name, m] : rows)
+    if (m)
+      text += format("%-30s %8.3f %12.3f %15.0f %12.2e %13.2e\n", name, m->fwd_s, m->fwd_bwd_s, m->peak_fwd_bwd_mib,
+                     m->rel_l1_mean, m->rel_l1_max);
+  return text;
 }
 
 }  // namespace
@@ -98,7 +115,7 @@ int bench_psf(const Config& cfg, const AppArgs& args, BenchOutput& out) {
                   {"psf_size", spec.psf_size},
                   {"doe_samples", spec.doe_samples},
                   {"precision", choice_name(cfg.optics.precision)},
-                  {"doe_init", cfg.optics.doe.init},
+                  {"doe_init", choice_word(cfg.optics.doe.init, cfg.optics.doe.init_path)},
                   {"pixel_nodes", nodes},
                   {"rss_at_start_mib", rss_start},
                   {"hsd", to_json(ours)},
@@ -113,24 +130,9 @@ int bench_psf(const Config& cfg, const AppArgs& args, BenchOutput& out) {
   out.json["psf_rel_l1_mean"] = ours.rel_l1_mean;
   out.json["psf_rel_l1_max"] = ours.rel_l1_max;
 
-  char buf[512];
-  std::string text = "PSF stack: " + std::to_string(spec.wavelengths_m.size()) + " bands x " +
-                     std::to_string(spec.depths_m.size()) + " depths, " + std::to_string(spec.psf_size) + " px window, " +
-                     std::to_string(spec.doe_samples) + "^2 DOE samples, " + choice_name(cfg.optics.precision) + ", threads " +
-                     std::to_string(torch::get_num_threads()) + "\n";
-  std::snprintf(buf, sizeof buf, "process RSS before the runs: %.0f MiB (LibTorch and data); peak RSS below includes it\n", rss_start);
-  text += buf;
-  text += "method                          fwd [s]  fwd+bwd [s]  peak RSS [MiB]  rel L1 mean  rel L1 worst\n";
-  auto row = [&](const char* name, const Measured& m) {
-    std::snprintf(buf, sizeof buf, "%-30s %8.3f %12.3f %15.0f %12.2e %13.2e\n", name, m.fwd_s, m.fwd_bwd_s,
-                  m.peak_fwd_bwd_mib, m.rel_l1_mean, m.rel_l1_max);
-    text += buf;
-  };
-  row("hsd (MFT, Gauss pixels)", ours);
-  row("hsd, recompute in backward", lean);
-  row("hsd, point-sampled pixels", point);
-  if (!args.has("--no-baseline")) row("baseline FFT + bilinear", base);
-  out.text = text;
+  out.text = psf_text(spec, cfg.optics.precision, rss_start,
+                      {{"hsd (MFT, Gauss pixels)", &ours}, {"hsd, recompute in backward", &lean},
+                       {"hsd, point-sampled pixels", &point}, {"baseline FFT + bilinear", args.has("--no-baseline") ? nullptr : &base}});
   return 0;
 }
 

@@ -19,6 +19,7 @@
 #include "bench/benches.h"
 #include "common/error.h"
 #include "common/log.h"
+#include "common/text_format.h"
 #include "train/trainer.h"
 
 namespace hsd::bench {
@@ -29,6 +30,46 @@ struct Row {
   std::string precision;
   double step_s = 0, peak_mib = 0, net_s = 0;
 };
+
+// The table of step and network times per precision (the config's first).
+std::string steps_text(const Config& cfg, int64_t patch, int64_t margin, const std::vector<Row>& rows) {
+  const int64_t L = int64_t(cfg.optics.wavelengths_nm.size()), Z = int64_t(cfg.optics.depths_m.size());
+  std::string text = format(
+      "training step: %lld x %lld px patch(es) rendered with %lld px of scene around them, batch %lld, "
+      "%lld bands, %lld depths, PSF %lld, pupil %lld, U-Net width %lld x %lld levels, threads %d\n"
+      "network precision     step (PSF + sensor + network + Adam)   network alone fwd+bwd   peak RSS\n",
+      (long long)patch, (long long)patch, (long long)margin, (long long)cfg.train.batch_size, (long long)L, (long long)Z,
+      (long long)cfg.optics.psf_size, (long long)cfg.optics.doe_samples, (long long)cfg.model.base_width,
+      (long long)cfg.model.levels, torch::get_num_threads());
+  for (const Row& r : rows)
+    text += format("%-9s%s %18.3f s %32.3f s %15s\n", r.precision.c_str(), &r == &rows[0] ? " (config)" : "         ",
+                   r.step_s, r.net_s, r.peak_mib > 0 ? (std::to_string(int(r.peak_mib + 0.5)) + " MiB").c_str() : "");
+  const Row& f32 = rows[0].precision == "float32" ? rows[0] : rows[1];
+  const Row& bf16 = rows[0].precision == "float32" ? rows[1] : rows[0];
+  text += format("float32 / bfloat16: step %.2fx, network %.2fx\n", f32.step_s / bf16.step_s, f32.net_s / bf16.net_s);
+  return text;
+}
+
+// --profile: the mean seconds of each phase of a step, as a table and in the JSON.
+void append_profile(BenchOutput& out, const train::StepProfile& prof, const std::string& precision, double wall_s) {
+  const double n = double(std::max<int64_t>(prof.steps, 1));
+  const std::vector<std::pair<std::string, double>> phases{
+      {"PSF forward", prof.psf_forward},         {"sensor image forward", prof.sensor_forward},
+      {"network forward", prof.network_forward}, {"loss (and its read-out)", prof.loss},
+      {"network backward", prof.network_backward}, {"sensor image backward", prof.sensor_backward},
+      {"PSF backward", prof.psf_backward},       {"gradient checks, clipping, Adam", prof.optimizer}};
+  double sum = 0;
+  for (const auto& p : phases) sum += p.second / n;
+  out.text += format("\nphases of the step (%s, mean of %lld profiled steps):\n", precision.c_str(), (long long)prof.steps);
+  Json jp = Json::object();
+  for (const auto& [name, total] : phases) {
+    out.text += format("  %-34s %8.3f s  %5.1f%%\n", name.c_str(), total / n, 100.0 * total / n / sum);
+    jp[name] = total / n;
+  }
+  out.text += format("  %-34s %8.3f s\n", "sum", sum);
+  out.json["profile_seconds"] = jp;
+  out.json["profile_step_wall_seconds"] = wall_s;  // wall time per profiled step (the phases are disjoint parts of it)
+}
 
 }  // namespace
 
@@ -97,48 +138,8 @@ int bench_train(Config cfg, const AppArgs& args, BenchOutput& out) {
                   {"rss_at_start_mib", rss_start}, {"seconds_per_step_float32", f32.step_s},
                   {"seconds_per_step_bfloat16", bf16.step_s}, {"seconds_network_fwd_bwd_float32", f32.net_s},
                   {"seconds_network_fwd_bwd_bfloat16", bf16.net_s}};
-  char buf[1024];
-  std::snprintf(buf, sizeof buf,
-                "training step: %lld x %lld px patch(es) rendered with %lld px of scene around them, batch %lld, "
-                "%lld bands, %lld depths, PSF %lld, pupil %lld, U-Net width %lld x %lld levels, threads %d\n"
-                "network precision     step (PSF + sensor + network + Adam)   network alone fwd+bwd   peak RSS\n",
-                (long long)patch, (long long)patch, (long long)margin, (long long)batch, (long long)L, (long long)Z,
-                (long long)cfg.optics.psf_size, (long long)cfg.optics.doe_samples, (long long)cfg.model.base_width,
-                (long long)cfg.model.levels, torch::get_num_threads());
-  out.text = buf;
-  for (const Row& r : rows) {
-    std::snprintf(buf, sizeof buf, "%-9s%s %18.3f s %32.3f s %15s\n", r.precision.c_str(),
-                  &r == &rows[0] ? " (config)" : "         ", r.step_s, r.net_s,
-                  r.peak_mib > 0 ? (std::to_string(int(r.peak_mib + 0.5)) + " MiB").c_str() : "");
-    out.text += buf;
-  }
-  std::snprintf(buf, sizeof buf, "float32 / bfloat16: step %.2fx, network %.2fx\n", f32.step_s / bf16.step_s,
-                f32.net_s / bf16.net_s);
-  out.text += buf;
-
-  if (profile) {
-    const double n = double(std::max<int64_t>(prof.steps, 1));
-    const std::vector<std::pair<std::string, double>> phases{
-        {"PSF forward", prof.psf_forward},         {"sensor image forward", prof.sensor_forward},
-        {"network forward", prof.network_forward}, {"loss (and its read-out)", prof.loss},
-        {"network backward", prof.network_backward}, {"sensor image backward", prof.sensor_backward},
-        {"PSF backward", prof.psf_backward},       {"gradient checks, clipping, Adam", prof.optimizer}};
-    double sum = 0;
-    for (const auto& p : phases) sum += p.second / n;
-    std::snprintf(buf, sizeof buf, "\nphases of the step (%s, mean of %lld profiled steps):\n", rows[0].precision.c_str(),
-                  (long long)prof.steps);
-    out.text += buf;
-    Json jp = Json::object();
-    for (const auto& [name, total] : phases) {
-      std::snprintf(buf, sizeof buf, "  %-34s %8.3f s  %5.1f%%\n", name.c_str(), total / n, 100.0 * total / n / sum);
-      out.text += buf;
-      jp[name] = total / n;
-    }
-    std::snprintf(buf, sizeof buf, "  %-34s %8.3f s\n", "sum", sum);
-    out.text += buf;
-    out.json["profile_seconds"] = jp;
-    out.json["profile_step_wall_seconds"] = profiled_wall_s;
-  }
+  out.text = steps_text(cfg, patch, margin, rows);
+  if (profile) append_profile(out, prof, rows[0].precision, profiled_wall_s);
   return 0;
 }
 

@@ -54,7 +54,7 @@ TEST_CASE("set overrides parse JSON values and bare words as strings", "[config]
   const Config c = load_config(test::source_path("configs/paper.json"),
                                {"optics.psf_size=31", "optics.doe.init=spiral", "optics.wavelengths_nm=[500,600]"});
   CHECK(c.optics.psf_size == 31);
-  CHECK(c.optics.doe.init == "spiral");
+  CHECK(c.optics.doe.init == DoeFamily::spiral);
   CHECK(c.optics.wavelengths_nm == std::vector<double>{500, 600});
   CHECK(c.resolved["optics"]["psf_size"] == 31);
 }

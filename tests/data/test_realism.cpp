@@ -315,14 +315,14 @@ TEST_CASE("dead leaves on surfaces: the leaves become markings, depth comes from
 
 TEST_CASE("layouts: weights pick layouts, and classic alone reproduces the earlier generator", "[data][realism]") {
   GeneratorConfig g;
-  g.layouts = {{"classic_tabletop", 1.0}};
-  for (uint64_t s = 0; s < 20; ++s) CHECK(data::pick_layout(g, s) == "classic_tabletop");
-  g.layouts = {{"dead_leaves", 1.0}, {"tabletop", 1.0}, {"classic_tabletop", 0.0}};
+  g.layouts = {{SceneLayout::classic_tabletop, 1.0}};
+  for (uint64_t s = 0; s < 20; ++s) CHECK(data::pick_layout(g, s) == SceneLayout::classic_tabletop);
+  g.layouts = {{SceneLayout::dead_leaves, 1.0}, {SceneLayout::tabletop, 1.0}, {SceneLayout::classic_tabletop, 0.0}};
   int leaves = 0;
   for (uint64_t s = 0; s < 200; ++s) {
-    const std::string l = data::pick_layout(g, s);
-    CHECK(l != "classic_tabletop");
-    leaves += l == "dead_leaves";
+    const SceneLayout l = data::pick_layout(g, s);
+    CHECK(l != SceneLayout::classic_tabletop);
+    leaves += l == SceneLayout::dead_leaves;
   }
   CHECK(leaves > 70);
   CHECK(leaves < 130);

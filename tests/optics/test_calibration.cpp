@@ -207,7 +207,8 @@ TEST_CASE("psf_source = file: the simulator's own stack images exactly as the si
                          "simulated");
   CHECK(optics::read_psf_file(path).source == "simulated");
   Config file_cfg = cfg;
-  file_cfg.optics.psf_source = "file:" + path;
+  file_cfg.optics.psf_source = PsfSource::file;
+  file_cfg.optics.psf_path = path;
   const optics::PsfProvider provider = optics::psf_source_provider(file_cfg.optics, material, torch::kCPU);
   REQUIRE(provider);
   const optics::SensorModel sensor = optics::make_sensor_model(cfg.sensor, sim.spec(), cfg.optics.band_width_m());

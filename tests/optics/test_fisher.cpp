@@ -250,9 +250,6 @@ TEST_CASE("fisher nuisance: unknown position and brightness never lower a bound,
   CHECK(rn.condition.sizes() == torch::IntArrayRef({3, 3}));
   // Bad settings are refused naming the key.
   optics::FisherSettings bad = s;
-  bad.nuisance = {"z"};
-  CHECK_THROWS_WITH(optics::crlb_report(g, material, fresnel, bad), Catch::Contains("fisher.nuisance"));
-  bad = s;
   bad.aggregate_cap = 0.0;
   CHECK_THROWS_WITH(optics::crlb_report(g, material, fresnel, bad), Catch::Contains("fisher.aggregate_cap"));
 }

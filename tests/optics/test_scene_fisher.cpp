@@ -24,7 +24,7 @@ optics::FisherSettings small_settings() {
   s.wavelengths_nm = {500, 600};
   s.depths_m = {0.3, 0.5, 1.0};
   s.inv_depth_spacing = (1.0 / 0.3 - 1.0) / 2;
-  s.nuisance = {"N"};
+  s.nuisance = {NuisanceParam::N};
   return s;
 }
 optics::SceneFisherSettings small_scene() {

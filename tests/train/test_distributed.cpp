@@ -584,12 +584,7 @@ TEST_CASE("hsd_train: bad distributed settings exit 2 with one line naming the v
   CHECK_THAT(o2, Catch::Contains("train.batch_size"));
   CHECK(count_lines(o2) == 2);
   // Ranks with different configs: the odd one out names the key; its peer reports the lost rank.
-  const int port = free_local_port();
-  const std::string env = "WORLD_SIZE=2 MASTER_ADDR=127.0.0.1 MASTER_PORT=" + std::to_string(port);
-  const auto [o3, c3] = test::capture("cd " + std::string(HSD_SOURCE_DIR) + " && (env " + env + " RANK=0 " + bin + args +
-                                      " > /dev/null 2>&1; echo \"rank0=$?\") & (cd " + std::string(HSD_SOURCE_DIR) +
-                                      " && env " + env + " RANK=1 " + bin + args +
-                                      " --set train.lr_net=0.001 2>&1 >/dev/null; echo \"rank1=$?\"); wait");
+  const std::string o3 = test::two_rank_train(args, args + " --set train.lr_net=0.001");
   INFO(o3);
   CHECK_THAT(o3, Catch::Contains("rank1=2"));
   CHECK_THAT(o3, Catch::Contains("train.lr_net"));
@@ -598,12 +593,8 @@ TEST_CASE("hsd_train: bad distributed settings exit 2 with one line naming the v
   const std::string ckdir = (base / "ck").string();
   REQUIRE(test::run("hsd_train" + kTinyRun + " --set data.root=" + (base / "data").string() + " --set train.steps=2 --out " +
                     ckdir).code == 0);
-  const std::string env2 = "WORLD_SIZE=2 MASTER_ADDR=127.0.0.1 MASTER_PORT=" + std::to_string(free_local_port());
   const std::string ck_args = kTinyRun + " --set data.root=" + (base / "data").string() + " --set train.steps=4 --out " + ckdir;
-  const auto [o6, c6] = test::capture("cd " + std::string(HSD_SOURCE_DIR) + " && (env " + env2 + " RANK=0 " + bin + ck_args +
-                                      " > /dev/null 2>&1; echo \"rank0=$?\") & (cd " + std::string(HSD_SOURCE_DIR) +
-                                      " && env " + env2 + " RANK=1 " + bin + ck_args +
-                                      " --resume 2>&1 >/dev/null; echo \"rank1=$?\"); wait");
+  const std::string o6 = test::two_rank_train(ck_args, ck_args + " --resume");
   INFO(o6);
   CHECK_THAT(o6, Catch::Contains("rank1=2"));
   CHECK_THAT(o6, Catch::Contains("--resume"));
