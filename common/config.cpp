@@ -353,6 +353,8 @@ TrainConfig parse_train(const JsonReader& t) {
       n->fail("misalignment_m", "must be 0 in training (a mask misalignment needs the level masks; sweep it with hsd_fabricate --tolerance)");
     if (T.fabrication_noise.height_scale_error < 0.0) n->fail("height_scale_error", "is the standard deviation of the drawn error here: must be >= 0");
   }
+  T.fabrication_noise_ramp_steps = int_in(t, "fabrication_noise_ramp_steps", T.fabrication_noise_ramp_steps, 0, 10000000,
+                                          " (0 = the full noise from step 0)");
   T.loss_alpha = t.get_number("loss_alpha", T.loss_alpha);
   T.loss_beta = t.get_number("loss_beta", T.loss_beta);
   T.loss_gamma = t.get_number("loss_gamma", T.loss_gamma);

@@ -202,6 +202,10 @@ struct TrainConfig {
   // (docs/fabrication.md says why not straight through).
   // All 0 = off. misalignment_m must be 0 (it needs the level masks).
   FabricationErrorConfig fabrication_noise;
+  // A curriculum: the scales grow linearly from 0 at step 0 to fabrication_noise
+  // at this step (the draws scaled, so step k's errors are (k / ramp) times the
+  // full run's); 0 = the full scales from the first step.
+  int64_t fabrication_noise_ramp_steps = 0;
 };
 
 // Data-parallel training over several processes (train/distributed.h); who

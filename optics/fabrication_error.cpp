@@ -114,6 +114,11 @@ FabricationErrorConfig draw_fabrication_error(const FabricationErrorConfig& scal
   return e;
 }
 
+FabricationErrorConfig scaled_fabrication_error(FabricationErrorConfig e, double f) {
+  e.height_scale_error *= f, e.roughness_rms_m *= f, e.edge_blur_m *= f, e.misalignment_m *= f, e.decentre_m *= f;
+  return e;
+}
+
 bool no_fabrication_error(const FabricationErrorConfig& e) {
   return e.height_scale_error == 0.0 && e.roughness_rms_m == 0.0 && e.edge_blur_m == 0.0 && e.misalignment_m == 0.0 &&
          e.decentre_m == 0.0;

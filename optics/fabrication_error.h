@@ -64,6 +64,9 @@ torch::Tensor gaussian_blur_2d(const torch::Tensor& map, double sigma_samples);
 // in a direction ~ U(0, 2π) (written to *angle_rad). misalignment stays 0.
 FabricationErrorConfig draw_fabrication_error(const FabricationErrorConfig& scales, std::mt19937_64& rng, double* angle_rad);
 
+// The error sizes of `e` times f >= 0 (the correlation length kept).
+FabricationErrorConfig scaled_fabrication_error(FabricationErrorConfig e, double f);
+
 // True when every error of `e` is zero.
 bool no_fabrication_error(const FabricationErrorConfig& e);
 

@@ -48,9 +48,14 @@ uint64_t mix(uint64_t a, uint64_t b) {
 // through the errors (blur, scale and shift are linear in the map, roughness
 // adds to it), so the DOE follows the gradient of the loss averaged over the
 // errors; a straight-through gradient (identity) made the DOE finer and more
-// fragile under edge rounding (docs/fabrication.md).
+// fragile under edge rounding (docs/fabrication.md). With
+// train.fabrication_noise_ramp_steps the scales grow linearly to their full
+// size at that step (a curriculum).
 torch::Tensor with_fabrication_noise(const torch::Tensor& h, const Config& cfg, const optics::Doe& doe, int64_t step) {
-  const FabricationErrorConfig& scales = cfg.train.fabrication_noise;
+  const int64_t ramp = cfg.train.fabrication_noise_ramp_steps;
+  const FabricationErrorConfig scales = ramp > 0 ? optics::scaled_fabrication_error(
+                                                       cfg.train.fabrication_noise, std::min(1.0, double(step) / double(ramp)))
+                                                 : cfg.train.fabrication_noise;
   if (optics::no_fabrication_error(scales)) return h;
   std::mt19937_64 rng(mix(cfg.seed ^ 0xFAB0FAB0ull, uint64_t(step)));
   double angle = 0;

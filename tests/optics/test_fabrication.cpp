@@ -282,6 +282,14 @@ TEST_CASE("fabrication noise: a zero scale draws no error, draws are seeded, and
   CHECK((ea.edge_blur_m >= 0 && ea.edge_blur_m <= 4e-6));
   CHECK((ea.decentre_m >= 0 && ea.decentre_m <= 16e-6));
   CHECK(ea.misalignment_m == 0.0);
+  // The curriculum's scaled scales (train.fabrication_noise_ramp_steps) draw the same errors scaled.
+  std::mt19937_64 c(7);
+  const auto ec = optics::draw_fabrication_error(optics::scaled_fabrication_error(scales, 0.25), c, nullptr);
+  CHECK(ec.height_scale_error == Approx(0.25 * ea.height_scale_error).epsilon(1e-12));
+  CHECK(ec.edge_blur_m == Approx(0.25 * ea.edge_blur_m).epsilon(1e-12));
+  CHECK(ec.decentre_m == Approx(0.25 * ea.decentre_m).epsilon(1e-12));
+  CHECK(ec.roughness_rms_m == Approx(0.25 * ea.roughness_rms_m).epsilon(1e-12));
+  CHECK(optics::no_fabrication_error(optics::scaled_fabrication_error(scales, 0.0)));
   // Training differentiates through the errors (trainer.cpp): blur, scale and
   // a sub-cell decentre are linear in the map, roughness adds to it.
   FabricationErrorConfig e;
@@ -408,7 +416,7 @@ TEST_CASE("hsd_fabricate: PNG, TIFF and GDSII of a DOE, masks rebuild its levels
   fs::remove_all(dir);
 }
 
-TEST_CASE("train.fabrication_noise: the same run sees other PSFs in training, validates the design, and refuses a misalignment", "[fabrication][app]") {
+TEST_CASE("train.fabrication_noise: the same run sees other PSFs in training, validates the design, ramps up, and refuses a misalignment", "[fabrication][app]") {
   const fs::path base = scratch("train");
   const std::string sets = test::tiny_run_sets(base / "data") + " --set train.log_every=1";
   const std::string cfg = "--config configs/tiny.json" + sets;
@@ -427,6 +435,18 @@ TEST_CASE("train.fabrication_noise: the same run sees other PSFs in training, va
   CHECK(va[0] == vb[0]);
   CHECK(std::isfinite(tb[1]));
   CHECK(ta[1] != tb[1]);
+  // The curriculum: at step 0 the ramp's scale is 0, so the first step is the nominal run's; the next is not.
+  const test::Run r = test::run("hsd_train " + cfg + noise + " --set train.fabrication_noise_ramp_steps=2 --out " +
+                                (base / "r").string());
+  INFO(r.err);
+  REQUIRE(r.code == 0);
+  const auto tr = column(base / "r/metrics.csv", "train_loss");
+  REQUIRE(tr.size() == ta.size());
+  CHECK(tr[1] == ta[1]);
+  CHECK(tr[2] != ta[2]);
+  const test::Run bad_ramp = test::run("hsd_train " + cfg + " --set train.fabrication_noise_ramp_steps=-1 --out " + (base / "d").string());
+  CHECK(bad_ramp.code == 2);
+  CHECK(bad_ramp.err.find("train.fabrication_noise_ramp_steps") != std::string::npos);
   const test::Run bad = test::run("hsd_train " + cfg + " --set train.fabrication_noise.misalignment_m=1e-06 --out " + (base / "c").string());
   CHECK(bad.code == 2);
   CHECK(bad.err.find("train.fabrication_noise.misalignment_m") != std::string::npos);
