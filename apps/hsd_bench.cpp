@@ -67,6 +67,6 @@ int run(const AppArgs& args) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  AppSpec spec{"hsd_bench", kUsage, {"--threads", "--repeats", "--patch", "--bands", "--depths", "--psf", "--pupil", "--scenes", "--batch", "--size", "--tile", "--overlap", "--band-stride", "--ref-oversampling", "--ref-spectral", "--ranks", "--child-mode", "--child-result", "--child-rank"}, {"--json", "--no-baseline", "--profile"}, false, false, 1};
+  AppSpec spec{"hsd_bench", kUsage, {"--threads", "--repeats", "--patch", "--bands", "--depths", "--psf", "--pupil", "--scenes", "--patches", "--batch", "--size", "--tile", "--overlap", "--band-stride", "--ref-oversampling", "--ref-spectral", "--ranks", "--child-mode", "--child-result", "--child-rank"}, {"--json", "--no-baseline", "--profile"}, false, false, 1};
   return run_app(spec, argc, argv, run);
 }

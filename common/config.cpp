@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "common/error.h"
+#include "common/log.h"
 
 namespace hsd {
 
@@ -204,8 +205,14 @@ DataConfig parse_data(const JsonReader& d) {
   if (c.intensity_max < c.intensity_min) d.fail("intensity_max", "must be >= data.intensity_min");
   c.patch_size_px = int_in(d, "patch_size_px", c.patch_size_px, 8, 8192);
   c.render_margin_px = int_in(d, "render_margin_px", c.render_margin_px, -1, 4096, " (-1 = optics.psf_size / 2)");
-  c.patches = d.get_int("patches", c.patches);
-  if (c.patches < 1) d.fail("patches", "must be >= 1");
+  // data.patches (an epoch size) was never read by training, which draws
+  // train.batch_size patches per step: still accepted, so configs saved by
+  // earlier runs load, with a warning.
+  if (d.has("patches")) {
+    (void)d.get_int("patches", 0);
+    log::warn("config key data.patches does nothing and is ignored (each step draws train.batch_size patches; "
+              "hsd_bench data takes --patches)");
+  }
   c.loader_threads = int_in(d, "loader_threads", c.loader_threads, 0, 256, " (0 = all cores)");
   if (auto gr = d.optional_child("generator")) c.generator = parse_generator(*gr);
   return c;

@@ -327,7 +327,6 @@ struct DataConfig {
   // soft layer masks' reach, optics.psf_size / 2 + ceil(3 sensor.mask_sigma_px);
   // 0 = none (the patch's own edges replicated outward).
   int64_t render_margin_px = -1;
-  int64_t patches = 20000;           // per epoch of the patch sampler (the paper: 20,000)
   int64_t loader_threads = 0;        // scene loading; 0 = all cores
   GeneratorConfig generator;
 };

@@ -1,6 +1,6 @@
 // hsd_bench data: the data path of training, measured in one run: generating
 // synthetic scenes (per scene), loading a split with 1 and with N threads,
-// building the patch sampler, drawing data.patches patch specs and extracting
+// building the patch sampler, drawing --patches patch specs and extracting
 // (lighting included) patches of data.patch_size_px.
 #include <chrono>
 #include <cstdio>
@@ -60,8 +60,9 @@ double exr_mib_per_scene(const std::string& dir, int64_t scenes) {
 }  // namespace
 
 int bench_data(Config cfg, const AppArgs& args, BenchOutput& out) {
-  const int64_t scenes = args.integer("--scenes", 8);
+  const int64_t scenes = args.integer("--scenes", 8), patches = args.integer("--patches", 20000);
   if (scenes < 1 || scenes > 1000) input_error("--scenes", "must be in [1, 1000]");
+  if (patches < 1 || patches > 10000000) input_error("--patches", "must be in [1, 1e7]");
   auto& g = cfg.data.generator;
   g.train_scenes = scenes, g.val_scenes = 0, g.test_scenes = 0, g.colorchecker = false;
   const std::string dir = (std::filesystem::temp_directory_path() / ("hsd_bench_data_" + std::to_string(::getpid()))).string();
@@ -90,7 +91,7 @@ int bench_data(Config cfg, const AppArgs& args, BenchOutput& out) {
   const double t_sampler = secs(t);
   const data::IlluminantBank bank(cfg.data.illuminants, bands, bw);
   t = clock::now();
-  const auto specs = sampler.draw(cfg.data.patches, cfg.seed, bank.size(), cfg.data.intensity_min, cfg.data.intensity_max);
+  const auto specs = sampler.draw(patches, cfg.seed, bank.size(), cfg.data.intensity_min, cfg.data.intensity_max);
   const double t_draw = secs(t);
   const int64_t n_extract = std::min<int64_t>(200, int64_t(specs.size()));
   t = clock::now();
@@ -102,7 +103,7 @@ int bench_data(Config cfg, const AppArgs& args, BenchOutput& out) {
                   {"height_px", g.height_px}, {"bands", int64_t(bands.size())}, {"seconds_generate_per_scene", t_gen},
                   {"mib_per_scene_exr", mib}, {"seconds_load_1_thread", t_load1}, {"seconds_load_n_threads", t_loadn},
                   {"seconds_sampler_build", t_sampler}, {"sampler_candidates", sampler.candidates()},
-                  {"sampler_depth_bins", sampler.depth_bins_used()}, {"patches", cfg.data.patches},
+                  {"sampler_depth_bins", sampler.depth_bins_used()}, {"patches", patches},
                   {"seconds_draw_patches", t_draw}, {"patch_px", cfg.data.patch_size_px},
                   {"seconds_extract_per_patch", t_extract}, {"realism_mean", realism["mean"]},
                   {"realism_targets", realism["targets"]}, {"realism_reference_cave", realism["reference"]},
@@ -117,7 +118,7 @@ int bench_data(Config cfg, const AppArgs& args, BenchOutput& out) {
                 "extract + light     %8.4f s per %lld px patch\n",
                 (long long)scenes, (long long)g.width_px, (long long)g.height_px, bands.size(), threads, t_gen, mib, t_load1,
                 t_loadn, threads, t_load1 / std::max(1e-9, t_loadn), t_sampler, (long long)sampler.candidates(),
-                (long long)cfg.data.patch_size_px, (long long)sampler.depth_bins_used(), (long long)cfg.data.patches, t_draw,
+                (long long)cfg.data.patch_size_px, (long long)sampler.depth_bins_used(), (long long)patches, t_draw,
                 t_extract, (long long)cfg.data.patch_size_px);
   out.text = buf;
   char b2[512];

@@ -13,7 +13,7 @@ inline constexpr const char* kText =
     "              with the straightforward baseline and the floor of bare GEMMs/FFTs;\n"
     "              --patch 256 --bands 25 --depths 7 --psf 63 --pupil 512 set the work\n"
     "  NAME: data  the data path: scene generation, loading with 1 and N threads,\n"
-    "              the patch sampler and patch extraction (--scenes 8)\n"
+    "              the patch sampler and patch extraction (--scenes 8 --patches 20000)\n"
     "  NAME: train seconds per training step and peak memory, the network in float32\n"
     "              and in bfloat16 side by side, patches rendered with the config's\n"
     "              scene margin (--patch 256 --batch 1); --profile adds the step's\n"

@@ -164,7 +164,7 @@ TEST_CASE("hsd_simulate refuses bad scenes with exit 2 naming the file", "[app][
 TEST_CASE("hsd_bench data and train --json measure the data path and a training step", "[app][bench][data]") {
   const auto j = bench_json("data --config configs/tiny.json --scenes 2 --threads 2"
                             " --set data.generator.width_px=64 --set data.generator.height_px=48"
-                            " --set data.patch_size_px=16 --set data.patches=100");
+                            " --set data.patch_size_px=16 --patches 100");
   for (const char* k : {"seconds_generate_per_scene", "seconds_load_1_thread", "seconds_load_n_threads",
                         "seconds_draw_patches", "seconds_extract_per_patch", "sampler_candidates", "threads"})
     CHECK(j.contains(k));

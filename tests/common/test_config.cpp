@@ -8,6 +8,7 @@
 
 #include "common/config.h"
 #include "common/error.h"
+#include "common/log.h"
 #include "common/sample_stats.h"
 #include "helpers.h"
 
@@ -59,6 +60,35 @@ TEST_CASE("set overrides parse JSON values and bare words as strings", "[config]
   CHECK(c.resolved["optics"]["psf_size"] == 31);
 }
 
+TEST_CASE("typed choices: a file choice keeps its path, lists keep their order, words round-trip", "[config]") {
+  const Config c = load_config(test::source_path("configs/paper.json"),
+                               {"optics.doe.init=\"file:/tmp/h.pt\"", "optics.psf_source=all_in_focus", "fisher.nuisance=[\"N\",\"x\"]",
+                                "data.generator.layouts={\"tabletop\":2,\"classic_tabletop\":1}", "device=cpu"});
+  CHECK((c.optics.doe.init == DoeFamily::file));
+  CHECK(c.optics.doe.init_path == "/tmp/h.pt");
+  CHECK(choice_word(c.optics.doe.init, c.optics.doe.init_path) == "file:/tmp/h.pt");
+  CHECK((c.optics.psf_source == PsfSource::all_in_focus));
+  CHECK(c.optics.psf_path.empty());
+  CHECK((c.fisher.nuisance == std::vector<NuisanceParam>{NuisanceParam::N, NuisanceParam::x}));
+  // JSON objects list their keys sorted, so the layouts come in name order whatever the file's order.
+  REQUIRE(c.data.generator.layouts.size() == 2);
+  CHECK((c.data.generator.layouts[0] == std::make_pair(SceneLayout::classic_tabletop, 1.0)));
+  CHECK((c.data.generator.layouts[1] == std::make_pair(SceneLayout::tabletop, 2.0)));
+  CHECK((c.device == ComputeDevice::cpu));
+  for (const auto& [v, name] : choice_names(DoeFamily{})) {
+    DoeFamily back;
+    CHECK((v == DoeFamily::file || (choice_of(name, &back) && back == v)));
+  }
+}
+
+TEST_CASE("the inert key data.patches of saved configs is accepted with a warning", "[config]") {
+  const int before = log::warning_count();
+  const Config c = load_config(test::source_path("configs/paper.json"), {"data.patches=20000"});
+  CHECK(log::warning_count() == before + 1);
+  CHECK(c.data.patch_size_px > 0);
+  CHECK(error_of({"data.patches=\"many\""}).find("data.patches") != std::string::npos);  // still type-checked
+}
+
 TEST_CASE("bad configs name the key path", "[config]") {
   CHECK_THAT(error_of({"optics.psf_sizee=3"}), Catch::Contains("optics.psf_sizee") && Catch::Contains("unknown"));
   CHECK_THAT(error_of({"optics.psf_size=64"}), Catch::Contains("optics.psf_size") && Catch::Contains("odd"));
@@ -68,6 +98,10 @@ TEST_CASE("bad configs name the key path", "[config]") {
   CHECK_THAT(error_of({"optics.wavelengths_nm=[600, 500]"}), Catch::Contains("increasing"));
   CHECK_THAT(error_of({"optics.aperture_diameter_m=0.01"}), Catch::Contains("optics.aperture_diameter_m") && Catch::Contains("grid"));
   CHECK_THAT(error_of({"optics.doe.init=cubic"}), Catch::Contains("optics.doe.init"));
+  CHECK_THAT(error_of({"optics.doe.init=\"file:\""}), Catch::Contains("optics.doe.init") && Catch::Contains("path"));
+  CHECK_THAT(error_of({"optics.psf_source=\"files:x\""}), Catch::Contains("optics.psf_source") && Catch::Contains("file:PATH"));
+  CHECK_THAT(error_of({"fisher.nuisance=[\"x\",\"q\"]"}), Catch::Contains("fisher.nuisance") && Catch::Contains("q"));
+  CHECK_THAT(error_of({"data.generator.layouts={\"forest\":1}"}), Catch::Contains("data.generator.layouts.forest"));
   CHECK_THAT(error_of({"device=tpu"}), Catch::Contains("device"));
   CHECK_THAT(error_of({"sensor.noise_std=-0.1"}), Catch::Contains("sensor.noise_std"));
   CHECK_THAT(error_of({"train.batch_size=0"}), Catch::Contains("train.batch_size"));
