@@ -52,7 +52,6 @@ void write_realism_report(const std::string& dir, const GeneratorConfig& g, cons
                           const std::map<std::string, std::vector<double>>& structure_by_layout) {
   const RealismSummary sum = summarise_realism(std::move(realism));
   const SceneRealism ref = cave_realism(rspec);
-  // Depth structure against real depth maps at the same size and range (depth_structure.h).
   Json rj = realism_json(sum, &ref);
   std::string md = realism_markdown(sum, &ref);
   md += "\nDepth structure (the resolution oracle's depth RMSE at a " +

@@ -31,6 +31,11 @@ struct Row {
   double step_s = 0, peak_mib = 0, net_s = 0;
 };
 
+// The row of one precision ("float32" or "bfloat16"; rows holds both).
+const Row& row_of(const std::vector<Row>& rows, const std::string& precision) {
+  return rows[0].precision == precision ? rows[0] : rows[1];
+}
+
 // The table of step and network times per precision (the config's first).
 std::string steps_text(const Config& cfg, int64_t patch, int64_t margin, const std::vector<Row>& rows) {
   const int64_t L = int64_t(cfg.optics.wavelengths_nm.size()), Z = int64_t(cfg.optics.depths_m.size());
@@ -44,8 +49,7 @@ std::string steps_text(const Config& cfg, int64_t patch, int64_t margin, const s
   for (const Row& r : rows)
     text += format("%-9s%s %18.3f s %32.3f s %15s\n", r.precision.c_str(), &r == &rows[0] ? " (config)" : "         ",
                    r.step_s, r.net_s, r.peak_mib > 0 ? (std::to_string(int(r.peak_mib + 0.5)) + " MiB").c_str() : "");
-  const Row& f32 = rows[0].precision == "float32" ? rows[0] : rows[1];
-  const Row& bf16 = rows[0].precision == "float32" ? rows[1] : rows[0];
+  const Row &f32 = row_of(rows, "float32"), &bf16 = row_of(rows, "bfloat16");
   text += format("float32 / bfloat16: step %.2fx, network %.2fx\n", f32.step_s / bf16.step_s, f32.net_s / bf16.net_s);
   return text;
 }
@@ -127,8 +131,7 @@ int bench_train(Config cfg, const AppArgs& args, BenchOutput& out) {
     profiled_wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() / repeats;
     trainers[0]->set_profile(nullptr);
   }
-  const Row& f32 = rows[0].precision == "float32" ? rows[0] : rows[1];
-  const Row& bf16 = rows[0].precision == "float32" ? rows[1] : rows[0];
+  const Row &f32 = row_of(rows, "float32"), &bf16 = row_of(rows, "bfloat16");
 
   out.json = Json{{"bench", "train"}, {"threads", torch::get_num_threads()}, {"patch", patch}, {"margin", margin},
                   {"batch", batch}, {"bands", L}, {"depths", Z}, {"psf", cfg.optics.psf_size},
