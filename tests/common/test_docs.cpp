@@ -1,15 +1,19 @@
 // The documentation's links: every relative link and picture in README.md,
 // CONTRIBUTING.md, docs/*.md and the libraries' READMEs names a file that
 // exists (web addresses and in-page anchors are not followed; a link's own
-// #anchor is dropped).
+// #anchor is dropped); and docs/configuration.md documents exactly the keys
+// of configs/base.json.
 #include <catch2/catch.hpp>
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <regex>
 #include <sstream>
 #include <string>
+#include <set>
 #include <vector>
 
+#include "common/json_reader.h"
 #include "helpers.h"
 
 namespace fs = std::filesystem;
@@ -42,4 +46,56 @@ TEST_CASE("docs: every relative link in the README, CONTRIBUTING, docs/ and the 
     }
   }
   CHECK(checked > 20);  // the pattern finds the links (the README alone has more)
+}
+
+namespace {
+// The dotted paths of the leaves of `j` (values that are not objects; keys
+// starting with '_' are comments).
+void leaf_keys(const Json& j, const std::string& prefix, std::set<std::string>& out) {
+  for (auto it = j.begin(); it != j.end(); ++it) {
+    if (!it.key().empty() && it.key()[0] == '_') continue;
+    const std::string path = prefix.empty() ? it.key() : prefix + "." + it.key();
+    if (it->is_object())
+      leaf_keys(*it, path, out);
+    else
+      out.insert(path);
+  }
+}
+
+// The keys of docs/configuration.md's reference tables: the first cell of
+// every table row that starts with "| `".
+std::set<std::string> documented_keys(const std::string& text) {
+  std::set<std::string> keys;
+  const std::regex row(R"(^\| `([A-Za-z0-9_.]+)` \|)");
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) {
+    std::smatch m;
+    if (std::regex_search(line, m, row)) keys.insert(m[1].str());
+  }
+  return keys;
+}
+}  // namespace
+
+TEST_CASE("docs: docs/configuration.md has a row for every key of configs/base.json and no other", "[docs]") {
+  const Json base = load_json_with_extends(test::source_path("configs/base.json"));
+  std::set<std::string> keys;
+  leaf_keys(base, "", keys);
+  std::ifstream f(test::source_path("docs/configuration.md"));
+  REQUIRE(f);
+  std::stringstream ss;
+  ss << f.rdbuf();
+  const std::set<std::string> documented = documented_keys(ss.str());
+  std::string missing, extra;
+  for (const auto& k : keys)
+    if (!documented.count(k)) missing += k + " ";
+  for (const auto& k : documented)
+    if (!keys.count(k)) extra += k + " ";
+  INFO("keys of base.json without a row in docs/configuration.md: " << missing);
+  CHECK(missing.empty());
+  INFO("rows of docs/configuration.md that are not keys of base.json: " << extra);
+  CHECK(extra.empty());
+  CHECK(keys.size() > 150);  // the walk reaches the nested sections
+  // The check can fail: a row for a key that does not exist is found.
+  CHECK(documented_keys("| `optics.no_such_key` | 1 | x |\n| `seed` | 0 | y |\n") ==
+        std::set<std::string>{"optics.no_such_key", "seed"});
 }
