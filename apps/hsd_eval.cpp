@@ -1,5 +1,5 @@
 // hsd_eval: metrics and pictures of a trained system on a split
-// (train/evaluator.h): DIR/metrics.json (docs/interfaces.md keys, per scene and
+// (train/evaluator.h): DIR/metrics.json (docs/formats.md keys, per scene and
 // mean), DIR/report.md, per-scene comparisons and spectra, the ColorChecker
 // spectral plot and the DOE's PSF atlas.
 #include <cmath>

@@ -1,5 +1,5 @@
 // hsd_export: a training checkpoint -> DIR/reconstructor.pt, a TorchScript
-// module (model/torchscript_export.h; docs/interfaces.md signature) loadable by
+// module (model/torchscript_export.h; docs/formats.md signature) loadable by
 // torch::jit::load and Python's torch.jit.load, plus the optics the model
 // expects: DIR/doe_height.pt (height-map file), DIR/psf_atlas.png and
 // DIR/config.json.

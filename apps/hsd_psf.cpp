@@ -1,5 +1,5 @@
 // hsd_psf: a DOE (optics.doe.init) -> the hyperspectral-depth PSF stack.
-// Writes DIR/psf.pt (docs/interfaces.md), DIR/psf_atlas.png, DIR/config.json and
+// Writes DIR/psf.pt (docs/formats.md), DIR/psf_atlas.png, DIR/config.json and
 // prints the energy-in-window table and any sampling warnings.
 #include <cmath>
 #include <cstdio>

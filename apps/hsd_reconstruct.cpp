@@ -60,7 +60,7 @@ int run(const AppArgs& args) {
     input_error("--tile/--overlap", "need multiples of 32 with 2·overlap < tile");
   // Context: float32 keeps 2·overlap (seams 1e-7 of the cube's maximum for the
   // paper network); in bfloat16 the rounding (2e-4) already equals the seams of
-  // `overlap` pixels of context, so more context would buy nothing (README).
+  // `overlap` pixels of context, so more context would buy nothing (docs/benchmarks.md).
   const int64_t context = args.integer("--context", precision == "bfloat16" ? overlap : 2 * overlap);
   if (context < overlap || context % 32) input_error("--context", "must be a multiple of 32 and at least --overlap");
   // Large frames: give freed memory back above 64 MiB instead of keeping up to

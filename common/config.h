@@ -1,7 +1,7 @@
 // Typed, validated experiment configuration. JSON is parsed here, once, at the
 // edge; the libraries below only ever see these structs. Units are in the key
 // names (SI unless the name says otherwise: *_m metres, *_nm nanometres).
-// The keys named in docs/interfaces.md keep their meaning; see configs/base.json for
+// The keys named in docs/formats.md keep their meaning; see configs/base.json for
 // every key with its default.
 #pragma once
 #include <cstdint>
@@ -189,7 +189,7 @@ struct TrainConfig {
   int64_t log_every = 10;           // steps between metrics.csv rows
   // The network's arithmetic in training steps (model/unet.h): "float32" (the
   // default: bfloat16's validation curves did not match float32's on the
-  // quick config, README, Training), "bfloat16" (convolutions in bfloat16,
+  // quick config, docs/training.md), "bfloat16" (convolutions in bfloat16,
   // float32 master weights, optimizer, norms and loss), or "auto" (bfloat16 on
   // a CPU with native bfloat16 arithmetic, float32 elsewhere). Validation,
   // evaluation and the optics are float32 whatever this says.
@@ -266,13 +266,13 @@ struct SyntheticCaptureConfig {
 struct CalibrationConfig {
   // "auto": register to captures.json's axis_px when it gives one, else to each
   // slice's centroid; "centroid": every slice centred on its centroid
-  // (docs/interfaces.md); "axis": every slice on axis_px (required).
+  // (docs/formats.md); "axis": every slice on axis_px (required).
   Registration registration = Registration::automatic;
   // The background under the PSF: "auto" ("dark" when captures.json gives
   // dark frames, else "ring"); "dark": the dark frames (taken with the source
   // off: dark current and stray light) are the whole background; "ring": also
   // subtract the median of the frame's outer ring (which holds any light the
-  // DOE scatters that far: biased for wide-angle scatter, README).
+  // DOE scatters that far: biased for wide-angle scatter, docs/camera.md).
   CaptureBackground background = CaptureBackground::automatic;
   double hot_pixel_sigma = 8.0;   // a hot pixel is this many noise σ above its neighbours' median ...
   double hot_pixel_ratio = 3.0;   // ... and this many times its brightest neighbour

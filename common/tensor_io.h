@@ -1,4 +1,4 @@
-// .pt files as in docs/interfaces.md: torch pickles (torch::pickle_save) of a dict
+// .pt files as in docs/formats.md: torch pickles (torch::pickle_save) of a dict
 // from string to tensor, readable by Python's torch.load. Scalars are stored as
 // 0-dim tensors.
 #pragma once

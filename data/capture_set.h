@@ -1,5 +1,5 @@
 // A folder of point-source captures for hsd_calibrate: DIR/captures.json
-// (docs/interfaces.md, "Measured PSFs") and its image files. Keys:
+// (docs/formats.md, "Measured PSFs") and its image files. Keys:
 //   wavelengths_nm   [L] band centres of the captures
 //   depths_m         [Z] point-source distances from the DOE
 //   files            [L][Z] file names relative to DIR; an entry may also be

@@ -1,4 +1,4 @@
-// A dataset is a folder of scene EXRs plus manifest.json (docs/interfaces.md):
+// A dataset is a folder of scene EXRs plus manifest.json (docs/formats.md):
 //   { "format": "hsd-dataset", "version": 1,
 //     "wavelengths_nm": [...], "band_width_nm": 10,      (what the scenes hold; informative)
 //     "scenes": [ { "file": "scene_train_000.exr", "split": "train", "notes": "..." }, ... ] }

@@ -81,7 +81,7 @@ struct RealismSummary {
 };
 RealismSummary summarise_realism(std::vector<SceneRealism> scenes);
 
-// The targets of the realistic generator (README, Data): textured >= 0.95,
+// The targets of the realistic generator (docs/data.md): textured >= 0.95,
 // slope in [-2.3, -1.7], RGB-unexplained >= 0.07, every inverse-depth quarter >= 15 %.
 struct RealismTargets {
   double textured_min = 0.95, slope_lo = -2.3, slope_hi = -1.7, rgb_unexplained_min = 0.07, quarter_min = 0.15;

@@ -1,5 +1,5 @@
 // Spectral scenes in OpenEXR, in the layout of Fichet, Pacanowski & Wilkie,
-// "An OpenEXR Layout for Spectral Images", JCGT 10(3), 2021 (docs/interfaces.md):
+// "An OpenEXR Layout for Spectral Images", JCGT 10(3), 2021 (docs/formats.md):
 //   T.<λ><unit>   reflectance (transmittance/reflectance channels)
 //   S0.<λ><unit>  emitted radiance (first Stokes component)
 //   Z             depth in metres (distance from the DOE plane along the axis)

@@ -17,7 +17,7 @@
 // as in real scenes (metamers), so a network must learn more than a 3-to-L
 // lift. R stays in [0, 1] (convex mixtures of spectra in [0, 1], factors <= 1).
 // With the ColorChecker excluded these choices reach the realism targets on
-// configs/paper.json (README, Data); each was added for a measured shortfall
+// configs/paper.json (docs/data.md); each was added for a measured shortfall
 // (docs/data.md).
 //
 //   tabletop    : the classic room geometry (data/scene_generator.h: tilted back

@@ -2,7 +2,7 @@
 // tile of `tile` pixels is run with `context` pixels of input on every side
 // (at least `overlap`) and blended into the output with linear ramps across
 // `overlap` pixels on each side of the tile edges (weights sum to one). Seams
-// fall as the context grows (README: seam error against context and time).
+// fall as the context grows (docs/benchmarks.md: seam error against context and time).
 // Memory: the outputs plus one tile with its context.
 #pragma once
 #include <functional>

@@ -1,4 +1,4 @@
-// The network as a self-contained TorchScript module (docs/interfaces.md, "Exported
+// The network as a self-contained TorchScript module (docs/formats.md, "Exported
 // reconstructor"): forward(x [B, 3, H, W] linear sensor RGB) -> (hs [B, L, H, W],
 // depth [B, 1, H, W] metres). C++ cannot script a torch::nn::Module, so the
 // exporter writes HsdNet's forward pass as TorchScript source (generated for

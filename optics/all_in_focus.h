@@ -1,6 +1,6 @@
 // The all-in-focus control: an imaging system without an optical depth or
-// spectral cue, against which a DOE's contribution is measured (README,
-// "Training": the control arm of hsd_ablate, optics.psf_source = "all_in_focus").
+// spectral cue, against which a DOE's contribution is measured (docs/evaluation.md:
+// the control arm of hsd_ablate, optics.psf_source = "all_in_focus").
 // Every band λ and depth z gets one and the same PSF,
 //   P_λ,z = P_ideal   for all λ, z,
 // the diffraction-limited, in-focus PSF of the aperture at the design

@@ -34,7 +34,7 @@ torch::Tensor spiral_height(int64_t n, double pitch_m, double min_wavelength_m, 
 // Independent uniform heights in [0, max_height_m), seeded.
 torch::Tensor random_height(int64_t n, double max_height_m, uint64_t seed);
 
-// Height-map file (docs/interfaces.md): dict {height_map_m float32 [N, N], doe_pitch_m float64}.
+// Height-map file (docs/formats.md): dict {height_map_m float32 [N, N], doe_pitch_m float64}.
 void save_height_file(const std::string& path, const torch::Tensor& height_m, double doe_pitch_m);
 // Loads and checks it against the expected grid; InputError naming the file otherwise.
 torch::Tensor load_height_file(const std::string& path, int64_t expected_n, double expected_pitch_m);

@@ -101,7 +101,7 @@ torch::Tensor mft_intensity_low_rank(const LowRankKernel& kernel, const torch::T
 // and every depth shares one product with the pupil field, R·N² instead of
 // Z·G·r·N². The kernels differ between depths only by the defocus chirp
 // exp(i k ξ²/(2z)), so the stack has rank close to one depth's: measured on
-// the paper config, R = 39–56 against Z·G·r = 462–672 rows (README, Benchmarks).
+// the paper config, R = 39–56 against Z·G·r = 462–672 rows (docs/benchmarks.md).
 // kernels: complex [Z, M, N] (complex128 recommended). Computed from the
 // stack's Gram matrix [N, N] in complex128 by a randomised range finder.
 struct DepthBasis {

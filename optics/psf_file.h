@@ -1,4 +1,4 @@
-// The PSF stack file psf.pt (docs/interfaces.md, "Files"): written by
+// The PSF stack file psf.pt (docs/formats.md, "Files"): written by
 // hsd_psf (simulated) and hsd_calibrate (measured), read by
 // optics.psf_source = "file:PATH" so that training, evaluation and simulation
 // image through a given stack instead of the simulator. A dict of tensors:

@@ -1,7 +1,7 @@
 // Fisher information of a DOE about inverse depth D = 1/z *through a scene*,
 // not a point source. The Fisher design of fisher.h scores a point of known
 // spectrum, where every change of the PSF's shape is information; a camera
-// looking at textured surfaces sees something else (README, The DOE ablation:
+// looking at textured surfaces sees something else (docs/experiments.md, the DOE ablation:
 // designs whose point-source bound is best learned depth worst).
 //
 // Model (a Whittle likelihood; the scene cue of depth_distinctness.h made a

@@ -1,6 +1,6 @@
 // A synthetic lab bench: the frames a camera records of a point source through
 // a DOE, for hsd_calibrate's example folder and the simulated-prototype round
-// trip (README, "From simulation to a real camera"). Per (band, depth), in
+// trip (docs/camera.md). Per (band, depth), in
 // 16-bit sensor counts:
 //   frame = clip(round(Poisson(k·P + background) + Poisson(hot) + dark_level + N(0, σ_r²)), 0, 65535)
 // with P the PSF on the frame (the optical axis at the frame centre plus

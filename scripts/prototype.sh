@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The simulated-prototype round trip (README, "From simulation to a real
+# The simulated-prototype round trip (docs/camera.md, "From simulation to a real
 # camera"): what a researcher does with a real camera, with the fab and the
 # lab bench simulated.
 #   1. a learned DOE and its network: the quick config trained end to end
@@ -24,7 +24,7 @@ CFG=${CONFIG:-configs/quick.json}
 OUT=${OUT:-out/prototype}
 STEPS=${FINETUNE_STEPS:-500}
 B=build/bin
-# The fab's errors (README: a mild and a severe level were measured).
+# The fab's errors (docs/camera.md: a mild and a severe level were measured).
 FAB=(--set fabrication.error.height_scale_error=${FAB_SCALE:-0.05} --set fabrication.error.roughness_rms_m=${FAB_ROUGHNESS_M:-2e-8}
      --set fabrication.error.roughness_correlation_m=${FAB_CORRELATION_M:-1.6e-5} --set fabrication.error.edge_blur_m=${FAB_BLUR_M:-4e-6})
 IDEAL=${IDEAL_CHECKPOINT:-$OUT/ideal/checkpoints/last.pt}

@@ -1,5 +1,5 @@
 // The trivial answers every learned result is reported against, on the same
-// pixels (README, "Baselines"):
+// pixels (docs/evaluation.md, "Baselines"):
 //   constant depth: one depth for every pixel, 1 / m̃ with m̃ the median of the
 //     training split's valid inverse depths [1/m]: the constant that minimises
 //     the training loss's L1 term on inverse depth over the training pixels.

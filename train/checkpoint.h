@@ -1,4 +1,4 @@
-// Training checkpoints (docs/interfaces.md): a torch pickle dict of the next
+// Training checkpoints (docs/formats.md): a torch pickle dict of the next
 // step, the DOE ("doe.raw", plus "height_map_m" and "doe_pitch_m" so the file
 // serves as a height-map file), the network ("net.<name>": parameters and
 // buffers), Adam's moments per parameter ("adam.<group>.<index>.exp_avg",

@@ -214,7 +214,7 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
   a.colorchecker_rmse = cc_count > 0 ? cc_sum / double(cc_count) : -1.0;
   viz::write_psf_atlas(out_dir + "/psf_atlas.png", imaging_psf,
                           psf.spec().wavelengths_m, psf.spec().depths_m);
-  // metrics.json (docs/interfaces.md keys) and report.md.
+  // metrics.json (docs/formats.md keys) and report.md.
   auto row = [](const SceneMetrics& m) {
     Json j{{"file", m.file}, {"hs_psnr_db", m.hs_psnr_db}, {"hs_ssim", m.hs_ssim}, {"lum_psnr_db", m.lum_psnr_db},
            {"lum_ssim", m.lum_ssim}, {"depth_rmse_m", m.depth_rmse_m}, {"depth_mae_m", m.depth_mae_m}};

@@ -1,4 +1,4 @@
-// Reading training's metrics.csv (docs/interfaces.md: a header row with step,
+// Reading training's metrics.csv (docs/formats.md: a header row with step,
 // wall_s, train_loss, val_loss, ...; MetricsLog::columns lists them all):
 // rows of cells, empty where not measured, reached by column name.
 #pragma once

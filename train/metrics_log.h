@@ -1,4 +1,4 @@
-// Training's metrics.csv (docs/interfaces.md: step, wall_s, train_loss,
+// Training's metrics.csv (docs/formats.md: step, wall_s, train_loss,
 // val_loss, then hsd's additions) and its three plots: curves.png (training
 // and validation loss), val_psnr.png and val_depth.png (the model beside its
 // baselines on the same patches; a curve that does not leave its baseline has

@@ -5,7 +5,7 @@
 // The library default is "float32"; configs/paper.json takes "auto": on the
 // quick config (same seed) bfloat16 ended within 1% of float32's validation
 // loss (the criterion is 2%; an earlier quick config ended 14.5% above), and
-// the paper step is 1.3-1.45x faster (README, Training).
+// the paper step is 1.3-1.45x faster (docs/training.md).
 #pragma once
 #include <string>
 

@@ -94,7 +94,7 @@ class Trainer {
   // heads as loaded. InputError naming the file for a missing or mismatched entry.
   void start_from(const std::string& path);
 
-  // The whole run with its outputs in out_dir (docs/interfaces.md: metrics.csv,
+  // The whole run with its outputs in out_dir (docs/formats.md: metrics.csv,
   // checkpoints/last.pt, config.json; plus curves.png, val/ pictures). With a
   // group only rank 0 writes; all ranks end together.
   void run(const std::string& out_dir, bool resume);

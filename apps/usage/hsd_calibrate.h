@@ -6,8 +6,8 @@ namespace hsd::usage {
 
 inline constexpr const char* kText =
     "hsd_calibrate --config FILE --captures DIR [--reference psf.pt] [--set key=VALUE ...] --out OUT\n"
-    "  Measured PSFs from point-source captures: reads DIR/captures.json (README,\n"
-    "  \"From simulation to a real camera\"; docs/interfaces.md), subtracts the dark frame,\n"
+    "  Measured PSFs from point-source captures: reads DIR/captures.json (docs/camera.md,\n"
+    "  docs/formats.md), subtracts the dark frame,\n"
     "  removes hot pixels and the background, registers each PSF (to captures.json's\n"
     "  axis_px, or to its centroid), cuts the optics.psf_size window and normalises\n"
     "  it. Writes OUT/psf.pt (source \"measured\", with per-slice background, noise\n"

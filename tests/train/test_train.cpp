@@ -178,7 +178,7 @@ TEST_CASE("train: 600 steps on an easy scene set learn depth better than the con
   // near layer blurred by ~3.5 px, the far one sharp), textured tabletop
   // scenes (layout and optics both tell depth), no noise, patches rendered
   // with scene around them, group normalisation. What must not happen again: a depth head that
-  // stays at the constant's level (README, docs/learning.md).
+  // stays at the constant's level (docs/learning.md).
   const std::string root = (fs::temp_directory_path() / "hsd_test_learnable").string();
   fs::remove_all(root);
   const Config cfg = load_config(
