@@ -1,5 +1,5 @@
-// The network's arithmetic in training steps (train.precision; README,
-// Training): float32, or bfloat16 convolutions under float32 master weights
+// The network's arithmetic in training steps (train.precision;
+// docs/training.md): float32, or bfloat16 convolutions under float32 master weights
 // (model/unet.h, "Mixed precision"). "auto" takes bfloat16 on a CPU with
 // native bfloat16 dot products (AVX512-BF16 or AMX-BF16), float32 elsewhere.
 // The library default is "float32"; configs/paper.json takes "auto": on the
