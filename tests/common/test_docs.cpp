@@ -4,15 +4,14 @@
 // #anchor is dropped); and docs/configuration.md documents exactly the keys
 // of configs/base.json.
 #include <catch2/catch.hpp>
-#include <algorithm>
 #include <filesystem>
-#include <fstream>
 #include <regex>
 #include <sstream>
 #include <string>
 #include <set>
 #include <vector>
 
+#include "common/atomic_file.h"
 #include "common/json_reader.h"
 #include "helpers.h"
 
@@ -29,11 +28,7 @@ TEST_CASE("docs: every relative link in the README, CONTRIBUTING, docs/ and the 
   const std::regex link(R"(\]\(([^)\s]+)\))");
   int checked = 0;
   for (const auto& page : pages) {
-    std::ifstream f(page);
-    REQUIRE(f);
-    std::stringstream ss;
-    ss << f.rdbuf();
-    const std::string text = ss.str();
+    const std::string text = read_text_file(page.string());
     for (auto it = std::sregex_iterator(text.begin(), text.end(), link); it != std::sregex_iterator(); ++it) {
       std::string target = (*it)[1].str();
       if (target.rfind("http://", 0) == 0 || target.rfind("https://", 0) == 0 || target.rfind("mailto:", 0) == 0 ||
@@ -80,11 +75,7 @@ TEST_CASE("docs: docs/configuration.md has a row for every key of configs/base.j
   const Json base = load_json_with_extends(test::source_path("configs/base.json"));
   std::set<std::string> keys;
   leaf_keys(base, "", keys);
-  std::ifstream f(test::source_path("docs/configuration.md"));
-  REQUIRE(f);
-  std::stringstream ss;
-  ss << f.rdbuf();
-  const std::set<std::string> documented = documented_keys(ss.str());
+  const std::set<std::string> documented = documented_keys(read_text_file(test::source_path("docs/configuration.md")));
   std::string missing, extra;
   for (const auto& k : keys)
     if (!documented.count(k)) missing += k + " ";
