@@ -50,6 +50,13 @@ void log_summary(const train::EvalResult& r, const std::string& split) {
                   a.hs_psnr_db - a.baseline_wiener_hs_psnr_db);
     log::info(buf);
   }
+  if (std::isfinite(a.model_base_hs_psnr_db)) {
+    std::snprintf(buf, sizeof buf,
+                  "the network's residual base alone (its learned spectral map, no U-Net): HS PSNR %.2f dB, SSIM %.4f; "
+                  "the U-Net adds %+.2f dB",
+                  a.model_base_hs_psnr_db, a.model_base_hs_ssim, a.hs_psnr_db - a.model_base_hs_psnr_db);
+    log::info(buf);
+  }
   if (!std::isnan(a.depth_effective_resolution_px)) {
     std::snprintf(buf, sizeof buf,
                   "the depth RMSE equals that of the true depth averaged over a box of %s (the resolution oracle, "
@@ -110,7 +117,11 @@ int run(const AppArgs& args) {
     }
     const optics::PsfProvider own = optics::psf_source_provider(cfg.optics, material, torch::kCPU);
     const torch::Tensor model_psf = camera ? optics::imaging_psf_stack(sim, h, own) : torch::Tensor();
-    r = train::evaluate(sim, sensor, h, net, cfg, split, args.out_dir, inv, camera ? camera : own, model_psf);
+    // A learned spectral map travels in the model as its parameter p_upsampling_weights.
+    torch::Tensor model_map;
+    if (cfg.model.spectral_map == SpectralMap::learned && m.hasattr("p_upsampling_weights"))
+      model_map = m.attr("p_upsampling_weights").toTensor().detach().to(torch::kFloat32);
+    r = train::evaluate(sim, sensor, h, net, cfg, split, args.out_dir, inv, camera ? camera : own, model_psf, model_map);
   }
   write_resolved_config(cfg, args.out_dir);
   log_summary(r, split);

@@ -41,6 +41,8 @@ enum class HeadInit { baselines, random };
 enum class Preinverse { none, wiener };
 // model.residual: what the cube head's output is added to.
 enum class ResidualBase { image, preinverse };
+// model.spectral_map: the residual's RGB -> bands map fixed (the paper's) or learned.
+enum class SpectralMap { fixed, learned };
 // train.decay: the learning rate after the warm-up.
 enum class LrDecay { cosine, none };
 // train.depth_loss: the depth term in inverse depth or in metres.
@@ -105,6 +107,9 @@ constexpr ChoiceTable<Preinverse, 2> choice_names(Preinverse) {
 }
 constexpr ChoiceTable<ResidualBase, 2> choice_names(ResidualBase) {
   return {{{ResidualBase::image, "image"}, {ResidualBase::preinverse, "preinverse"}}};
+}
+constexpr ChoiceTable<SpectralMap, 2> choice_names(SpectralMap) {
+  return {{{SpectralMap::fixed, "fixed"}, {SpectralMap::learned, "learned"}}};
 }
 constexpr ChoiceTable<LrDecay, 2> choice_names(LrDecay) {
   return {{{LrDecay::cosine, "cosine"}, {LrDecay::none, "none"}}};

@@ -334,6 +334,7 @@ ModelConfig parse_model(const JsonReader& m) {
   M.preinverse = read_choice(m, "preinverse", M.preinverse);
   M.preinverse_reg = number_in(m, "preinverse_reg", M.preinverse_reg, '[', 1e-8, 1e3, ']');
   M.residual = read_choice(m, "residual", M.residual);
+  M.spectral_map = read_choice(m, "spectral_map", M.spectral_map);
   if (M.residual == ResidualBase::preinverse && M.preinverse != Preinverse::wiener)
     m.fail("residual", "\"preinverse\" needs model.preinverse = \"wiener\" (got \"" + choice_name(M.preinverse) + "\")");
   return M;

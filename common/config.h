@@ -150,6 +150,12 @@ struct ModelConfig {
   // upsampling of the mean of the layers' Wiener deconvolutions (needs
   // preinverse = "wiener"): a sharper start the network refines.
   ResidualBase residual = ResidualBase::image;
+  // The residual base's spectral upsampling (model/spectral_upsampling.h):
+  // "fixed", the paper's map from the camera response Ω; "learned", the same
+  // [L, 3] linear map as a network parameter started at the paper's, scored
+  // alone by hsd_eval (model_base_*). Measured, not adopted: docs/learning.md,
+  // "The cube's gain and the illuminant".
+  SpectralMap spectral_map = SpectralMap::fixed;
 };
 
 // The errors a fab makes, applied to a DOE height map (optics/fabrication_error.h):

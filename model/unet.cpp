@@ -77,7 +77,9 @@ HsdNetImpl::HsdNetImpl(const NetOptions& options, const torch::Tensor& upsamplin
   }
   head_hs_ = register_module("head_hs", torch::nn::Conv2d(torch::nn::Conv2dOptions(width[0], opt_.bands, 1)));
   head_depth_ = register_module("head_depth", torch::nn::Conv2d(torch::nn::Conv2dOptions(width[0], 1, 1)));
-  weights_ = register_buffer("upsampling_weights", upsampling_weights.to(torch::kFloat32).clone());
+  const torch::Tensor w0 = upsampling_weights.to(torch::kFloat32).clone();
+  weights_ = opt_.learned_spectral_map ? register_parameter("upsampling_weights", w0)
+                                       : register_buffer("upsampling_weights", w0);
 }
 
 void HsdNetImpl::set_replica_group(const std::shared_ptr<ReplicaGroup>& group) {

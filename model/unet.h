@@ -46,6 +46,9 @@ struct NetOptions {
   // image (the paper's); true = the spectral upsampling of the mean over the
   // K layers of the Wiener deconvolutions (needs preinverse_layers > 0).
   bool residual_preinverse = false;
+  // The residual's spectral-upsampling weights: false = a buffer (the paper's
+  // fixed map), true = a parameter started at the given weights (learned).
+  bool learned_spectral_map = false;
 };
 
 struct NetOutput {
@@ -71,7 +74,8 @@ class HsdNetImpl : public torch::nn::Module {
   // image [B, 3, H, W] -> its Wiener deconvolutions [B, 3K, H, W].
   torch::Tensor preinverse(const torch::Tensor& image) const;
   const NetOptions& options() const { return opt_; }
-  // The residual's spectral-upsampling weights [L, C] (a buffer).
+  // The residual's spectral-upsampling weights [L, C] (a buffer, or a
+  // parameter when learned_spectral_map; "upsampling_weights" either way).
   const torch::Tensor& upsampling_weights() const { return weights_; }
   // Residual learning from the trivial answers: zeroes the cube head (the cube
   // is then the spectral upsampling alone) and the depth head's weights, and

@@ -60,8 +60,11 @@ EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& spli
     return std::make_pair(o.hs, o.depth_m);
   };
   const torch::Tensor model_psf = camera_psf ? trainer.psf_stack() : torch::Tensor();
+  const torch::Tensor model_map = trainer.net()->options().learned_spectral_map
+                                      ? trainer.net()->upsampling_weights().detach().cpu()
+                                      : torch::Tensor();
   EvalResult r = evaluate(trainer.psf(), trainer.sensor(), trainer.doe().height().detach(), net, cfg, split, out_dir,
-                          trainer.baseline_inv_depth(), camera_psf ? camera_psf : trainer.fixed_psf(), model_psf);
+                          trainer.baseline_inv_depth(), camera_psf ? camera_psf : trainer.fixed_psf(), model_psf, model_map);
   trainer.net()->train();
   return r;
 }
@@ -69,7 +72,7 @@ EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& spli
 EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& sensor, const torch::Tensor& height_m,
                     const Reconstructor& reconstruct, const Config& cfg, const std::string& split,
                     const std::string& out_dir, double baseline_inv_depth, const optics::PsfProvider& fixed_psf,
-                    const torch::Tensor& model_psf) {
+                    const torch::Tensor& model_psf, const torch::Tensor& model_map) {
   const std::string root = cfg.data.root;
   const auto bands = cfg.optics.wavelengths_m();
   const double bw = cfg.optics.band_width_m();
@@ -87,6 +90,9 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     log::warn("no constant-depth baseline: the checkpoint or model does not store the training split's median inverse "
               "depth (made by an earlier hsd); retrain, or evaluate with a checkpoint of this version");
   const torch::Tensor up_w = model::spectral_upsampling_weights(sensor.omega.cpu());
+  if (model_map.defined() && !(model_map.dim() == 2 && model_map.size(0) == up_w.size(0) && model_map.size(1) == up_w.size(1)))
+    throw InputError("the model's spectral map must be [" + std::to_string(up_w.size(0)) + ", " +
+                     std::to_string(up_w.size(1)) + "] (optics.wavelengths_nm x RGB), got " + c10::str(model_map.sizes()));
   const torch::Tensor imaging_psf = optics::imaging_psf_stack(psf, h, fixed_psf).cpu();
   const torch::Tensor rgb_psf =
       model::camera_rgb_psfs(model_psf.defined() ? model_psf.detach().cpu() : imaging_psf, sensor.omega.cpu());
@@ -124,9 +130,17 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     const torch::Tensor up = model::spectral_upsample(up_w, img.image.cpu())[0];
     m.baseline_upsampling_hs_psnr_db = psnr_db(up, radiance, m.data_range, valid);
     m.baseline_upsampling_hs_ssim = ssim(up, radiance, m.data_range, valid);
-    const torch::Tensor wup = wiener_upsampling_cube(img.image.cpu(), rgb_psf, cfg.model.preinverse_reg, up_w)[0];
+    const torch::Tensor wmean =
+        model::preinverse_layer_mean(model::wiener_preinverse(img.image.cpu(), rgb_psf, cfg.model.preinverse_reg), rgb_psf.size(0));
+    const torch::Tensor wup = model::spectral_upsample(up_w, wmean)[0];
     m.baseline_wiener_hs_psnr_db = psnr_db(wup, radiance, m.data_range, valid);
     m.baseline_wiener_hs_ssim = ssim(wup, radiance, m.data_range, valid);
+    if (model_map.defined()) {  // the network's own residual base, no U-Net
+      const torch::Tensor base = cfg.model.residual == ResidualBase::preinverse ? wmean : img.image.cpu();
+      const torch::Tensor mb = model::spectral_upsample(model_map.to(torch::kFloat32), base)[0];
+      m.model_base_hs_psnr_db = psnr_db(mb, radiance, m.data_range, valid);
+      m.model_base_hs_ssim = ssim(mb, radiance, m.data_range, valid);
+    }
     if (constant_known) {
       const DepthErrors dc = depth_errors(constant_depth_map(sc.depth_m, baseline_inv_depth), sc.depth_m, valid);
       m.baseline_constant_depth_rmse_m = dc.rmse_m, m.baseline_constant_depth_mae_m = dc.mae_m;
@@ -201,6 +215,10 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     a.baseline_wiener_hs_psnr_db += m.baseline_wiener_hs_psnr_db / n;
     a.baseline_wiener_hs_ssim += m.baseline_wiener_hs_ssim / n;
   }
+  if (model_map.defined()) {
+    a.model_base_hs_psnr_db = a.model_base_hs_ssim = 0.0;
+    for (const auto& m : res.scenes) a.model_base_hs_psnr_db += m.model_base_hs_psnr_db / n, a.model_base_hs_ssim += m.model_base_hs_ssim / n;
+  }
   a.oracle_depth_rmse_m.assign(kOracleWindowsPx.size(), 0.0);
   for (const auto& m : res.scenes)
     for (size_t k = 0; k < kOracleWindowsPx.size(); ++k) a.oracle_depth_rmse_m[k] += m.oracle_depth_rmse_m[k] / n;
@@ -224,6 +242,10 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     j["baseline_upsampling_hs_ssim"] = m.baseline_upsampling_hs_ssim;
     j["baseline_wiener_hs_psnr_db"] = m.baseline_wiener_hs_psnr_db;
     j["baseline_wiener_hs_ssim"] = m.baseline_wiener_hs_ssim;
+    if (std::isfinite(m.model_base_hs_psnr_db)) {
+      j["model_base_hs_psnr_db"] = m.model_base_hs_psnr_db;
+      j["model_base_hs_ssim"] = m.model_base_hs_ssim;
+    }
     if (std::isfinite(m.baseline_constant_depth_rmse_m)) {
       j["baseline_constant_depth_rmse_m"] = m.baseline_constant_depth_rmse_m;
       j["baseline_constant_depth_mae_m"] = m.baseline_constant_depth_mae_m;
@@ -246,7 +268,10 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
                "(11x11 Gaussian window, sigma 1.5) per band, averaged; every metric over the scene's valid pixels; "
                "baselines on the same pixels: the spectral-upsampling cube of the same sensor image (no network), the "
                "same upsampling of the mean over the depth layers of its Wiener deconvolutions (baseline_wiener_*, "
-               "rho = model.preinverse_reg, no network) and one constant depth (the training split's median inverse depth); reference_oracle_depth_rmse_m: the "
+               "rho = model.preinverse_reg, no network)" +
+               std::string(model_map.defined() ? ", the network's residual base alone (model_base_*: its learned spectral "
+                                                  "map on its residual base, no U-Net)" : "") +
+               " and one constant depth (the training split's median inverse depth); reference_oracle_depth_rmse_m: the "
                "resolution oracle (the true inverse depth averaged over a w x w box of valid pixels, w in px), a ruler "
                "for how fine the scenes' depth is, not a baseline; depth_effective_resolution_px: the box whose oracle "
                "scores the model's depth RMSE (mean over scenes)";
@@ -277,6 +302,13 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
   md += "\nIn brackets: the baseline on the same pixels (HS: the upsampling cube of the sensor image alone; depth: ";
   md += constant_known ? "the constant " + c10::str(1.0 / baseline_inv_depth) + " m" : std::string("not known");
   md += "). A model that does not beat its baseline has learned nothing from the image.\n";
+  if (std::isfinite(a.model_base_hs_psnr_db)) {
+    std::snprintf(buf, sizeof buf,
+                  "\nThe network's residual base alone (its learned spectral map on its residual base, no U-Net), mean "
+                  "over the scenes: HS PSNR %.2f dB, SSIM %.4f; the U-Net adds %+.2f dB to it.\n",
+                  a.model_base_hs_psnr_db, a.model_base_hs_ssim, a.hs_psnr_db - a.model_base_hs_psnr_db);
+    md += buf;
+  }
   md += "\nThe resolution oracle (the true inverse depth averaged over a w × w box; what a depth sensor exact at w "
         "pixels and blind below would score), mean depth RMSE [m] over the scenes:\n\n| w [px] |";
   for (int64_t w : kOracleWindowsPx) md += " " + std::to_string(w) + " |";

@@ -26,6 +26,9 @@ struct SceneMetrics {
   double baseline_constant_depth_rmse_m = std::nan(""), baseline_constant_depth_mae_m = std::nan("");
   double baseline_upsampling_hs_psnr_db = 0, baseline_upsampling_hs_ssim = 0;
   double baseline_wiener_hs_psnr_db = 0, baseline_wiener_hs_ssim = 0;  // Wiener deconvolution + upsampling
+  // The network's residual base alone (model.spectral_map = "learned": its
+  // learned map on its base, no U-Net); NaN when the map is the fixed one.
+  double model_base_hs_psnr_db = std::nan(""), model_base_hs_ssim = std::nan("");
   // The resolution oracle (baselines.h) on the same pixels, one RMSE [m] per
   // window of kOracleWindowsPx; on the mean, the window whose oracle RMSE
   // equals the model's (its effective depth resolution, px; +inf: coarser than all).
@@ -53,11 +56,14 @@ using Reconstructor = std::function<std::pair<torch::Tensor, torch::Tensor>(cons
 // cube of the same sensor image, its Wiener deconvolution with `model_psf`
 // [L, Z, P, P] (the PSFs the system believes it has; undefined = the imaging
 // PSFs), and the constant depth 1 / baseline_inv_depth [1/m] (NaN: not
-// reported, with a warning).
+// reported, with a warning). `model_map` [L, 3]: a learned spectral map of the
+// network's residual (model.spectral_map = "learned"), scored on its residual
+// base (cfg.model.residual) alone; undefined: not reported.
 EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& sensor, const torch::Tensor& height_m,
                     const Reconstructor& reconstruct, const Config& cfg, const std::string& split,
                     const std::string& out_dir, double baseline_inv_depth = std::nan(""),
-                    const optics::PsfProvider& fixed_psf = nullptr, const torch::Tensor& model_psf = {});
+                    const optics::PsfProvider& fixed_psf = nullptr, const torch::Tensor& model_psf = {},
+                    const torch::Tensor& model_map = {});
 
 // The same with a trainer's optics, DOE and network (load a checkpoint first).
 // `camera_psf` (a fixed provider, e.g. of a measured or perturbed PSF file):

@@ -128,6 +128,7 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
     precision_ = training_precision(cfg.train.precision, device_);
     o.train_dtype = precision_.dtype;
     net_ = model::HsdNet(o, w);
+    upsampling_w_ = w.to(torch::kFloat32);
   }
   if (cfg.optics.field_angle_deg != 0.0)
     input_error("config key optics.field_angle_deg", "is for hsd_psf's off-axis analysis; training and evaluation image with the "
@@ -433,10 +434,10 @@ ValStats Trainer::validate() {
     // The window's deconvolutions once: the network's input and the Wiener baseline (reconstruct_window's work).
     const torch::Tensor pre = K > 0 ? centre(net_->preinverse(img.image)) : torch::Tensor();
     const model::NetOutput out = K > 0 ? net_->forward(J, pre) : net_->forward(J);
-    se_up += (model::spectral_upsample(net_->upsampling_weights(), J) - I).pow(2).sum().item<double>();
+    se_up += (model::spectral_upsample(upsampling_w_.to(J.device()), J) - I).pow(2).sum().item<double>();
     if (K > 0) {  // the Wiener baseline: the layers' mean deconvolution of the window, upsampled
       const torch::Tensor wm = model::preinverse_layer_mean(pre, K);
-      se_w += (model::spectral_upsample(net_->upsampling_weights(), wm) - I).pow(2).sum().item<double>();
+      se_w += (model::spectral_upsample(upsampling_w_.to(wm.device()), wm) - I).pow(2).sum().item<double>();
     }
     const torch::Tensor Zc = constant_depth_map(Z, c_inv);
     abs_c += (Zc - Z).abs().sum().item<double>();

@@ -161,6 +161,7 @@ class Trainer {
   optics::PsfProvider fixed_psf_;   // optics.psf_source = "all_in_focus": the control's PSFs
   bool doe_trained_ = true;         // false when frozen (train.freeze_doe) or unused (a fixed PSF source)
   double baseline_inv_depth_ = std::nan("");
+  torch::Tensor upsampling_w_;  // [L, 3] the paper's fixed spectral map: the baselines' (not the network's, when learned)
   bool network_started_ = false;    // start_from() loaded the network: attach_data keeps its heads
   TrainingPrecision precision_;
   StepProfile* profile_ = nullptr;

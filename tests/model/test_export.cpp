@@ -121,7 +121,8 @@ TEST_CASE("export: a network with the Wiener pre-inversion exports with its PSFs
   model::NetOptions o;
   o.bands = 4, o.base_width = 8, o.levels = 2, o.norm = NormKind::group, o.preinverse_layers = 3, o.preinverse_reg = 0.02;
   o.residual_preinverse = GENERATE(false, true);  // the cube's residual on the image or on the deconvolutions
-  INFO("residual_preinverse " << o.residual_preinverse);
+  o.learned_spectral_map = GENERATE(false, true);  // model.spectral_map = "learned": the map is a parameter
+  INFO("residual_preinverse " << o.residual_preinverse << ", learned spectral map " << o.learned_spectral_map);
   model::HsdNet net(o, torch::rand({4, 3}));
   net->eval();
   CHECK_THROWS_AS(model::export_torchscript(net, {{400e-9, 450e-9, 500e-9, 550e-9}, {}, {}}), InputError);  // no PSFs yet
@@ -140,4 +141,5 @@ TEST_CASE("export: a network with the Wiener pre-inversion exports with its PSFs
   CHECK((d - ref.depth_m).abs().max().item<double>() <= 1e-5 * ref.depth_m.abs().max().item<double>());
   model::set_reconstructor_precision(loaded, torch::kBFloat16);
   CHECK(loaded.attr("preinverse_psf").toTensor().scalar_type() == torch::kFloat32);  // the deconvolution stays float32
+  CHECK(torch::equal(loaded.attr("p_upsampling_weights").toTensor(), net->upsampling_weights()));
 }

@@ -8,6 +8,8 @@
 #include "common/error.h"
 #include "helpers.h"
 #include "model/net_options.h"
+#include "model/spectral_upsampling.h"
+#include "model/unet.h"
 
 using namespace hsd;
 
@@ -33,7 +35,6 @@ TEST_CASE("net_options: the depth head spans the layers and the scenes, widened 
   CHECK(o.residual_preinverse);
   CHECK(o.norm == NormKind::group);
   // A margin that would pass infinity keeps the far end at half its inverse depth.
-  // A margin that would pass infinity keeps the far end at half its inverse depth.
   cfg = load_config(test::source_path("configs/base.json"), {"model.depth_margin=0.5"});
   CHECK(model::net_options(cfg).depth_max_m == Approx(2.0 * far));
 }
@@ -47,5 +48,44 @@ TEST_CASE("model.norm is parsed once into its type, and any other word is refuse
   } catch (const InputError& e) {
     CHECK(std::string(e.what()).find("model.norm") != std::string::npos);
     CHECK(std::string(e.what()).find("\"batch\", \"group\" or \"none\"") != std::string::npos);
+  }
+}
+
+TEST_CASE("model.spectral_map: learned makes the residual's map a parameter started at the paper's, whose gradient is the upsampling's, and fixed keeps it a buffer", "[model]") {
+  Config cfg = load_config(test::source_path("configs/base.json"), {"model.base_width=4", "model.levels=1"});
+  CHECK((cfg.model.spectral_map == SpectralMap::fixed));
+  model::NetOptions o = model::net_options(cfg);
+  CHECK_FALSE(o.learned_spectral_map);
+  const int64_t L = o.bands;
+  const torch::Tensor omega = torch::rand({3, L}, torch::TensorOptions().dtype(torch::kFloat64)) + 0.1;
+  const torch::Tensor w = model::spectral_upsampling_weights(omega).to(torch::kFloat32);
+  auto has = [](const auto& dict, const std::string& key) { return dict.find(key) != nullptr; };
+  {
+    model::HsdNet fixed(o, w);
+    CHECK(has(fixed->named_buffers(), "upsampling_weights"));
+    CHECK_FALSE(has(fixed->named_parameters(), "upsampling_weights"));
+  }
+  cfg = load_config(test::source_path("configs/base.json"), {"model.base_width=4", "model.levels=1", "model.spectral_map=learned"});
+  o = model::net_options(cfg);
+  REQUIRE(o.learned_spectral_map);
+  model::HsdNet net(o, w);
+  CHECK_FALSE(has(net->named_buffers(), "upsampling_weights"));
+  REQUIRE(has(net->named_parameters(), "upsampling_weights"));
+  CHECK(torch::equal(net->upsampling_weights(), w));
+  // With the cube head at zero the cube is W·image, so for the loss Σ G ⊙ cube
+  // the map's gradient is Σ_pixels G ⊗ image (and the head's weight gets one too).
+  net->start_at_baselines(1.0);
+  net->eval();
+  torch::manual_seed(3);
+  const torch::Tensor image = torch::rand({2, 3, 8, 6}), G = torch::randn({2, L, 8, 6});
+  (net->forward(image).hs * G).sum().backward();
+  const torch::Tensor expected = torch::einsum("blhw,bchw->lc", {G, image});
+  REQUIRE(net->upsampling_weights().grad().defined());
+  CHECK(torch::allclose(net->upsampling_weights().grad(), expected, 1e-4, 1e-4));
+  try {
+    load_config(test::source_path("configs/base.json"), {"model.spectral_map=fitted"});
+    FAIL("model.spectral_map=fitted was accepted");
+  } catch (const InputError& e) {
+    CHECK(std::string(e.what()).find("model.spectral_map") != std::string::npos);
   }
 }

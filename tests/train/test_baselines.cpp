@@ -153,8 +153,25 @@ TEST_CASE("baselines: a network that outputs the baselines scores exactly the ba
     CHECK(m.hs_ssim == m.baseline_wiener_hs_ssim);
     CHECK(m.baseline_wiener_hs_psnr_db != m.baseline_upsampling_hs_psnr_db);
   }
+  // A learned spectral map (model.spectral_map = "learned"): a "network"
+  // answering with that map on its residual base (here the image) scores
+  // exactly model_base_*, which is absent when no map is given.
+  CHECK(std::isnan(r.mean.model_base_hs_psnr_db));
+  const torch::Tensor map = w * (1.0 + 0.3 * torch::rand_like(w));
+  auto mapped = [&](const torch::Tensor& x) {
+    return std::make_pair(model::spectral_upsample(map, x), train::constant_depth_map(x.narrow(1, 0, 1), median));
+  };
+  const train::EvalResult rm =
+      train::evaluate(sim, sensor, h, mapped, cfg, "test", (root / "eval_m").string(), median, nullptr, {}, map);
+  for (const auto& m : rm.scenes) {
+    CHECK(m.hs_psnr_db == m.model_base_hs_psnr_db);
+    CHECK(m.hs_ssim == m.model_base_hs_ssim);
+    CHECK(m.model_base_hs_psnr_db != m.baseline_upsampling_hs_psnr_db);
+  }
+  CHECK(Json::parse(std::ifstream(root / "eval_m" / "metrics.json")).contains("model_base_hs_psnr_db"));
   // metrics.json carries the contract's baseline keys, mean and per scene.
   const Json j = Json::parse(std::ifstream(root / "eval" / "metrics.json"));
+  CHECK_FALSE(j.contains("model_base_hs_psnr_db"));
   for (const char* k : {"baseline_constant_depth_rmse_m", "baseline_constant_depth_mae_m", "baseline_upsampling_hs_psnr_db",
                         "baseline_upsampling_hs_ssim", "baseline_wiener_hs_psnr_db", "baseline_wiener_hs_ssim"}) {
     CHECK(j.contains(k));
