@@ -44,8 +44,11 @@ double effective_resolution_px(const std::vector<int64_t>& windows, const std::v
 
 torch::Tensor wiener_upsampling_cube(const torch::Tensor& image, const torch::Tensor& rgb_psf, double reg,
                                      const torch::Tensor& upsampling_weights) {
-  const torch::Tensor x = model::wiener_preinverse(image, rgb_psf, reg);
-  return model::spectral_upsample(upsampling_weights, model::preinverse_layer_mean(x, rgb_psf.size(0)));
+  return model::spectral_upsample(upsampling_weights, wiener_mean_image(image, rgb_psf, reg));
+}
+
+torch::Tensor wiener_mean_image(const torch::Tensor& image, const torch::Tensor& rgb_psf, double reg) {
+  return model::preinverse_layer_mean(model::wiener_preinverse(image, rgb_psf, reg), rgb_psf.size(0));
 }
 
 }  // namespace hsd::train

@@ -27,9 +27,13 @@ namespace hsd::train {
 // InputError when no scene has a valid pixel.
 double median_inverse_depth(const std::vector<data::LoadedScene>& scenes);
 
-// The Wiener baseline's cube: image [B, C, H, W], rgb_psf [K, C, P, P]
-// (model::camera_rgb_psfs of the imaging PSFs), reg ρ > 0, upsampling_weights
-// [L, C] -> [B, L, H, W].
+// The image the Wiener baseline upsamples: the mean over the K layers of the
+// image's Wiener deconvolutions. image [B, C, H, W], rgb_psf [K, C, P, P]
+// (model::camera_rgb_psfs of the imaging PSFs), reg ρ > 0 -> [B, C, H, W].
+torch::Tensor wiener_mean_image(const torch::Tensor& image, const torch::Tensor& rgb_psf, double reg);
+
+// The Wiener baseline's cube: wiener_mean_image upsampled with
+// upsampling_weights [L, C] -> [B, L, H, W].
 torch::Tensor wiener_upsampling_cube(const torch::Tensor& image, const torch::Tensor& rgb_psf, double reg,
                                      const torch::Tensor& upsampling_weights);
 

@@ -130,8 +130,8 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     const torch::Tensor up = model::spectral_upsample(up_w, img.image.cpu())[0];
     m.baseline_upsampling_hs_psnr_db = psnr_db(up, radiance, m.data_range, valid);
     m.baseline_upsampling_hs_ssim = ssim(up, radiance, m.data_range, valid);
-    const torch::Tensor wmean =
-        model::preinverse_layer_mean(model::wiener_preinverse(img.image.cpu(), rgb_psf, cfg.model.preinverse_reg), rgb_psf.size(0));
+    // The Wiener baseline's image once: upsampled by the fixed map here, by a learned one below.
+    const torch::Tensor wmean = wiener_mean_image(img.image.cpu(), rgb_psf, cfg.model.preinverse_reg);
     const torch::Tensor wup = model::spectral_upsample(up_w, wmean)[0];
     m.baseline_wiener_hs_psnr_db = psnr_db(wup, radiance, m.data_range, valid);
     m.baseline_wiener_hs_ssim = ssim(wup, radiance, m.data_range, valid);
