@@ -40,7 +40,7 @@ enum class HeadInit { baselines, random };
 // model.preinverse: the network's input beside the image.
 enum class Preinverse { none, wiener };
 // model.residual: what the cube head's output is added to.
-enum class ResidualBase { image, preinverse };
+enum class ResidualBase { image, preinverse, spectral_wiener };
 // model.spectral_map: the residual's RGB -> bands map fixed (the paper's) or learned.
 enum class SpectralMap { fixed, learned };
 // train.decay: the learning rate after the warm-up.
@@ -105,8 +105,9 @@ constexpr ChoiceTable<HeadInit, 2> choice_names(HeadInit) {
 constexpr ChoiceTable<Preinverse, 2> choice_names(Preinverse) {
   return {{{Preinverse::none, "none"}, {Preinverse::wiener, "wiener"}}};
 }
-constexpr ChoiceTable<ResidualBase, 2> choice_names(ResidualBase) {
-  return {{{ResidualBase::image, "image"}, {ResidualBase::preinverse, "preinverse"}}};
+constexpr ChoiceTable<ResidualBase, 3> choice_names(ResidualBase) {
+  return {{{ResidualBase::image, "image"}, {ResidualBase::preinverse, "preinverse"},
+           {ResidualBase::spectral_wiener, "spectral_wiener"}}};
 }
 constexpr ChoiceTable<SpectralMap, 2> choice_names(SpectralMap) {
   return {{{SpectralMap::fixed, "fixed"}, {SpectralMap::learned, "learned"}}};

@@ -337,6 +337,8 @@ ModelConfig parse_model(const JsonReader& m) {
   M.spectral_map = read_choice(m, "spectral_map", M.spectral_map);
   if (M.residual == ResidualBase::preinverse && M.preinverse != Preinverse::wiener)
     m.fail("residual", "\"preinverse\" needs model.preinverse = \"wiener\" (got \"" + choice_name(M.preinverse) + "\")");
+  if (M.residual == ResidualBase::spectral_wiener && M.spectral_map == SpectralMap::learned)
+    m.fail("spectral_map", "\"learned\" maps RGB to bands, and the \"spectral_wiener\" residual base has no such map");
   return M;
 }
 

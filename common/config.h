@@ -148,7 +148,9 @@ struct ModelConfig {
   // What the cube head's output is added to: "image", the spectral upsampling
   // of the sensor image (the paper's residual); "preinverse", the spectral
   // upsampling of the mean of the layers' Wiener deconvolutions (needs
-  // preinverse = "wiener"): a sharper start the network refines.
+  // preinverse = "wiener"): a sharper start the network refines;
+  // "spectral_wiener", the LMMSE cube of the image under the training
+  // split's spectral statistics (model/spectral_wiener.h), no spectral map.
   ResidualBase residual = ResidualBase::image;
   // The residual base's spectral upsampling (model/spectral_upsampling.h):
   // "fixed", the paper's map from the camera response Ω; "learned", the same

@@ -21,6 +21,7 @@ NetOptions net_options(const Config& cfg) {
   o.preinverse_layers = cfg.model.preinverse == Preinverse::wiener ? int64_t(d.size()) : 0;
   o.preinverse_reg = cfg.model.preinverse_reg;
   o.residual_preinverse = cfg.model.residual == ResidualBase::preinverse;
+  o.residual_spectral_wiener = cfg.model.residual == ResidualBase::spectral_wiener;
   o.learned_spectral_map = cfg.model.spectral_map == SpectralMap::learned;
   return o;
 }

@@ -4,6 +4,7 @@
 #include <sstream>
 
 #include "common/error.h"
+#include "model/spectral_wiener.h"
 
 namespace hsd::model {
 
@@ -55,7 +56,7 @@ void register_weights(torch::jit::Module& m, HsdNet& net, const ExportMetadata& 
   for (const auto& [k, v] : meta.numbers) m.register_attribute(k, c10::FloatType::get(), v);
 }
 
-// preinverse(image) and the fast_fft_size it needs: the Wiener pre-inversion
+// preinverse(image) (with define_fast_fft_size): the Wiener pre-inversion
 // (wiener_preinverse.cpp, line for line) with the PSFs of the DOE the network
 // was trained with, fixed from now on.
 void define_preinverse(torch::jit::Module& m, HsdNet& net) {
@@ -63,16 +64,6 @@ void define_preinverse(torch::jit::Module& m, HsdNet& net) {
   if (!net->preinverse_psf().defined())
     throw InputError("export: the network's pre-inversion PSFs are not set (load a checkpoint first)");
   m.register_buffer("preinverse_psf", net->preinverse_psf().detach().to(torch::kFloat32).clone());
-  m.define(
-      "def fast_fft_size(self, n: int) -> int:\n"
-      "        m = n\n        done = False\n"
-      "        while not done:\n"
-      "            k = m\n"
-      "            for p in [2, 3, 5]:\n"
-      "                while k % p == 0:\n"
-      "                    k = k // p\n"
-      "            if k == 1:\n                done = True\n            else:\n                m += 1\n"
-      "        return m\n");
   std::ostringstream w;
   w << "def preinverse(self, image: Tensor) -> Tensor:\n"
     << "        B = image.size(0)\n        C = image.size(1)\n        H = image.size(2)\n        W = image.size(3)\n"
@@ -87,6 +78,72 @@ void define_preinverse(torch::jit::Module& m, HsdNet& net) {
     << "        Y = torch.fft_rfft2(x).unsqueeze(1)\n"
     << "        X = torch.fft_irfft2(Y * G.unsqueeze(0), [nh, nw])\n"
     << "        return X[:, :, :, r:r + H, r:r + W].reshape([B, K * C, H, W])\n";
+  m.define(w.str());
+}
+
+// fast_fft_size(n) (common/fft_size.h): the smallest m >= n with no prime factor above 5.
+void define_fast_fft_size(torch::jit::Module& m) {
+  m.define(
+      "def fast_fft_size(self, n: int) -> int:\n"
+      "        m = n\n        done = False\n"
+      "        while not done:\n"
+      "            k = m\n"
+      "            for p in [2, 3, 5]:\n"
+      "                while k % p == 0:\n"
+      "                    k = k // p\n"
+      "            if k == 1:\n                done = True\n            else:\n                m += 1\n"
+      "        return m\n");
+}
+
+// spectral_wiener(image): spectral_wiener_cube (spectral_wiener.cpp, line for
+// line) with the band PSFs of the DOE the network was trained with and the
+// prior it was trained on (the network's sw_* buffers).
+void define_spectral_wiener(torch::jit::Module& m, HsdNet& net) {
+  if (!net->band_psf().defined())
+    throw InputError("export: the network's band PSFs are not set (load a checkpoint first)");
+  m.register_buffer("sw_psf", net->band_psf().detach().to(torch::kFloat32).clone());
+  m.define(
+      "def inverse3x3(self, m: Tensor) -> Tensor:\n"
+      "        a = m[:, 0, 0]\n        b = m[:, 0, 1]\n        c = m[:, 0, 2]\n"
+      "        d = m[:, 1, 0]\n        e = m[:, 1, 1]\n        f = m[:, 1, 2]\n"
+      "        g = m[:, 2, 0]\n        h = m[:, 2, 1]\n        i = m[:, 2, 2]\n"
+      "        c00 = e * i - f * h\n        c01 = f * g - d * i\n        c02 = d * h - e * g\n"
+      "        det = a * c00 + b * c01 + c * c02\n"
+      "        adj = torch.stack([torch.stack([c00, c * h - b * i, b * f - c * e], -1),\n"
+      "                           torch.stack([c01, a * i - c * g, c * d - a * f], -1),\n"
+      "                           torch.stack([c02, b * g - a * h, a * e - b * d], -1)], -2)\n"
+      "        return adj / det.unsqueeze(-1).unsqueeze(-1)\n");
+  std::ostringstream w;
+  w << "def spectral_wiener(self, image: Tensor) -> Tensor:\n"
+    << "        B = image.size(0)\n        H = image.size(2)\n        W = image.size(3)\n"
+    << "        L = self.sw_psf.size(0)\n        K = self.sw_psf.size(1)\n        P = self.sw_psf.size(2)\n        r = P // 2\n"
+    << "        nh = self.fast_fft_size(H + 2 * r)\n        nw = self.fast_fft_size(W + 2 * r)\n"
+    << "        nf = nw // 2 + 1\n        Fn = nh * nf\n"
+    << "        Om = self.p_sw_omega.double()\n        mu = self.p_sw_mean.double()\n"
+    << "        Sig = self.p_sw_covariance.double()\n        Sig = torch.complex(Sig, torch.zeros_like(Sig))\n"
+    << "        Oc = torch.complex(Om, torch.zeros_like(Om))\n"
+    << "        k = torch.constant_pad_nd(self.sw_psf.double(), [0, nw - P, 0, nh - P], 0.0)\n"
+    << "        k = torch.roll(k, [-r, -r], [2, 3])\n"
+    << "        Kf = torch.fft_rfft2(k).reshape([L, K, Fn]).permute([2, 0, 1])\n"
+    << "        G = torch.matmul(Kf, torch.conj(Kf).transpose(1, 2)) / float(K)\n"
+    << "        T = torch.matmul((G * Sig.unsqueeze(0)).reshape([Fn * L, L]), Oc.t()).reshape([Fn, L, 3])\n"
+    << "        A = torch.matmul(T.transpose(0, 1).reshape([L, Fn * 3]).t(), Oc.t()).reshape([Fn, 3, 3]).transpose(1, 2)\n"
+    << "        Kbar = Kf.mean(2)\n"
+    << "        C = torch.matmul((Sig.unsqueeze(0) * torch.conj(Kbar).unsqueeze(1)).reshape([Fn * L, L]), Oc.t()).reshape([Fn, L, 3])\n"
+    << "        iy = torch.arange(nh).double()\n"
+    << "        fy = (torch.where(iy < float((nh + 1) // 2), iy, iy - float(nh)) / float(nh)).view([-1, 1])\n"
+    << "        fx = (torch.arange(nf).double() / float(nw)).view([1, -1])\n"
+    << "        S = torch.pow(torch.sqrt(fy.square() + fx.square()) + 1.0 / float(max(nh, nw)), -" << c10::str(SpectralPrior().psd_exponent) << ")\n"
+    << "        S = S.flatten()\n        S = S / S[1:].mean()\n"
+    << "        S = torch.cat([S[0:1] * 10000.0, S[1:]])\n"
+    << "        M = S.view([-1, 1, 1]) * A + float(self.p_sw_noise_var.item()) * torch.complex(torch.eye(3).double(), torch.zeros([3, 3]).double())\n"
+    << "        Wf = torch.matmul(S.view([-1, 1, 1]) * C, self.inverse3x3(M))\n"
+    << "        y = image.float() - torch.matmul(Om, mu).float().view([1, 3, 1, 1])\n"
+    << "        y = torch.replication_pad2d(y, [r, nw - W - r, r, nh - H - r])\n"
+    << "        Y = torch.fft_rfft2(y).reshape([B, 3, Fn])\n"
+    << "        X = torch.einsum('flc,bcf->blf', [torch.complex(torch.real(Wf).float(), torch.imag(Wf).float()), Y]).reshape([B, L, nh, nf])\n"
+    << "        x = torch.fft_irfft2(X, [nh, nw])\n"
+    << "        return x[:, :, r:r + H, r:r + W] + mu.float().view([1, L, 1, 1])\n";
   m.define(w.str());
 }
 
@@ -105,6 +162,7 @@ std::string forward_source(const NetOptions& opt) {
     // keeps it; run_reconstructor passes channels-last); the outputs are float32.
     << "        x = image\n"
     << "        base = image.float()\n";  // the cube residual's base (unet.cpp)
+  if (opt.residual_spectral_wiener) o << "        sw_base = self.spectral_wiener(image.float())\n";
   if (pre) {
     o << "        pin = self.preinverse(image.float())\n"
       << "        x = torch.cat([image, pin.to(image.dtype)], 1)\n";
@@ -140,9 +198,11 @@ std::string forward_source(const NetOptions& opt) {
     << "        d = torch.sigmoid(torch.conv2d(y_depth, self.p_head_depth_weight, self.p_head_depth_bias, [1, 1], [0, 0], [1, 1], 1))\n"
     << "        hs = hs[:, :, 0:H, 0:W].float().contiguous()\n"
     << "        d = d[:, :, 0:H, 0:W].float().contiguous()\n"
-    << "        Lb = self.p_upsampling_weights.size(0)\n"
-    << "        up = torch.mm(self.p_upsampling_weights.float(), base.permute([1, 0, 2, 3]).reshape([C, B * H * W]))\n"
-    << "        hs = hs + up.reshape([Lb, B, H, W]).permute([1, 0, 2, 3])\n"
+    << (opt.residual_spectral_wiener
+            ? std::string("        hs = hs + sw_base\n")
+            : std::string("        Lb = self.p_upsampling_weights.size(0)\n"
+                          "        up = torch.mm(self.p_upsampling_weights.float(), base.permute([1, 0, 2, 3]).reshape([C, B * H * W]))\n"
+                          "        hs = hs + up.reshape([Lb, B, H, W]).permute([1, 0, 2, 3])\n"))
     << "        inv_far = 1.0 / " << c10::str(opt.depth_max_m) << "\n"
     << "        inv_near = 1.0 / " << c10::str(opt.depth_min_m) << "\n"
     << "        depth = 1.0 / (inv_far + d * (inv_near - inv_far))\n"
@@ -156,7 +216,9 @@ torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
   torch::jit::Module m("HsdReconstructor");
   torch::NoGradGuard no_grad;
   register_weights(m, net, meta);
+  if (net->options().preinverse_layers > 0 || net->options().residual_spectral_wiener) define_fast_fft_size(m);
   if (net->options().preinverse_layers > 0) define_preinverse(m, net);
+  if (net->options().residual_spectral_wiener) define_spectral_wiener(m, net);
   m.define(forward_source(net->options()));
   m.eval();
   return m;
@@ -168,8 +230,9 @@ void set_reconstructor_precision(torch::jit::Module& m, c10::ScalarType dtype) {
   torch::NoGradGuard ng;
   auto convert = [&](const std::string& name, torch::Tensor t) {
     if (name.find("upsampling") != std::string::npos || name.find("preinverse") != std::string::npos ||
+        name.find("sw_") != std::string::npos ||
         !t.is_floating_point())
-      return;  // the residual and the pre-inversion stay float32
+      return;  // the residual, the pre-inversion and the spectral Wiener base stay float32
     torch::Tensor v = t.detach().to(dtype);
     if (v.dim() == 4) v = v.contiguous(at::MemoryFormat::ChannelsLast);
     t.set_data(v);

@@ -5,6 +5,7 @@
 
 #include "model/spectral_upsampling.h"
 #include "model/sync_batch_norm.h"
+#include "model/spectral_wiener.h"
 #include "model/wiener_preinverse.h"
 
 namespace hsd::model {
@@ -57,6 +58,8 @@ HsdNetImpl::HsdNetImpl(const NetOptions& options, const torch::Tensor& upsamplin
               "preinverse_layers must be >= 0 and preinverse_reg > 0");
   TORCH_CHECK(!opt_.residual_preinverse || opt_.preinverse_layers > 0,
               "residual_preinverse needs the pre-inversion (preinverse_layers > 0)");
+  TORCH_CHECK(!(opt_.residual_preinverse && opt_.residual_spectral_wiener),
+              "the residual's base is the pre-inversion or the spectral Wiener cube, not both");
   TORCH_CHECK(upsampling_weights.dim() == 2 && upsampling_weights.size(0) == opt_.bands &&
                   upsampling_weights.size(1) == opt_.in_channels,
               "upsampling weights must be [bands, in_channels]");
@@ -80,6 +83,40 @@ HsdNetImpl::HsdNetImpl(const NetOptions& options, const torch::Tensor& upsamplin
   const torch::Tensor w0 = upsampling_weights.to(torch::kFloat32).clone();
   weights_ = opt_.learned_spectral_map ? register_parameter("upsampling_weights", w0)
                                        : register_buffer("upsampling_weights", w0);
+  if (opt_.residual_spectral_wiener) {  // zeros until set_spectral_prior (or a checkpoint) fills them
+    sw_mean_ = register_buffer("sw_mean", torch::zeros({opt_.bands}));
+    sw_cov_ = register_buffer("sw_covariance", torch::zeros({opt_.bands, opt_.bands}));
+    sw_noise_var_ = register_buffer("sw_noise_var", torch::zeros({1}));
+    sw_omega_ = register_buffer("sw_omega", torch::zeros({opt_.in_channels, opt_.bands}));
+  }
+}
+
+void HsdNetImpl::set_spectral_prior(const torch::Tensor& mean, const torch::Tensor& covariance, double noise_var,
+                                    const torch::Tensor& omega) {
+  TORCH_CHECK(opt_.residual_spectral_wiener, "HsdNet: set_spectral_prior without residual_spectral_wiener");
+  TORCH_CHECK(mean.numel() == opt_.bands && covariance.sizes() == sw_cov_.sizes() && omega.sizes() == sw_omega_.sizes() &&
+                  noise_var > 0,
+              "spectral prior must be mean [", opt_.bands, "], covariance [", opt_.bands, ", ", opt_.bands,
+              "], omega [3, ", opt_.bands, "] and a noise variance > 0");
+  torch::NoGradGuard no_grad;
+  sw_mean_.copy_(mean.reshape({-1}));
+  sw_cov_.copy_(covariance);
+  sw_noise_var_.fill_(noise_var);
+  sw_omega_.copy_(omega);
+}
+
+void HsdNetImpl::set_band_psf(const torch::Tensor& psf) {
+  TORCH_CHECK(psf.dim() == 4 && psf.size(0) == opt_.bands, "band PSFs must be [", opt_.bands, ", K, P, P], got ",
+              psf.sizes());
+  band_psf_ = psf;
+}
+
+torch::Tensor HsdNetImpl::spectral_wiener(const torch::Tensor& image) const {
+  TORCH_CHECK(opt_.residual_spectral_wiener, "HsdNet: spectral_wiener without residual_spectral_wiener");
+  TORCH_CHECK(band_psf_.defined(), "HsdNet: the spectral Wiener base needs set_band_psf first");
+  TORCH_CHECK(sw_noise_var_.item<double>() > 0, "HsdNet: the spectral Wiener base's prior was never set");
+  const SpectralPrior prior{sw_mean_, sw_cov_, sw_noise_var_.item<double>()};
+  return spectral_wiener_cube(image, band_psf_, sw_omega_, prior).to(torch::kFloat32);
 }
 
 void HsdNetImpl::set_replica_group(const std::shared_ptr<ReplicaGroup>& group) {
@@ -99,7 +136,7 @@ torch::Tensor HsdNetImpl::preinverse(const torch::Tensor& image) const {
   return wiener_preinverse(image, preinverse_psf_, opt_.preinverse_reg).to(image.scalar_type());
 }
 
-NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& preinverse_in) {
+NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& preinverse_in, const torch::Tensor& base_in) {
   TORCH_CHECK(image.dim() == 4 && image.size(1) == opt_.in_channels, "network input must be [B, ", opt_.in_channels,
               ", H, W], got ", image.sizes());
   const int64_t H = image.size(2), W = image.size(3), m = int64_t(1) << opt_.levels;
@@ -151,7 +188,14 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& p
     d = d.narrow(2, 0, H).narrow(3, 0, W);
   }
   NetOutput out;
-  out.hs = hs + spectral_upsample(weights_, base);
+  if (opt_.residual_spectral_wiener) {
+    const torch::Tensor b = base_in.defined() ? base_in : spectral_wiener(image);
+    TORCH_CHECK(b.dim() == 4 && b.size(0) == image.size(0) && b.size(1) == opt_.bands && b.size(2) == H && b.size(3) == W,
+                "residual base must be [B, ", opt_.bands, ", H, W], got ", b.sizes());
+    out.hs = hs + b;
+  } else {
+    out.hs = hs + spectral_upsample(weights_, base);
+  }
   const double inv_far = 1.0 / opt_.depth_max_m, inv_near = 1.0 / opt_.depth_min_m;
   out.inv_depth = inv_far + d * (inv_near - inv_far);
   out.depth_m = 1.0 / out.inv_depth;

@@ -24,6 +24,7 @@
 
 #include "common/choices.h"
 #include "model/replica_group.h"
+#include "model/spectral_wiener.h"
 
 namespace hsd::model {
 
@@ -46,6 +47,10 @@ struct NetOptions {
   // image (the paper's); true = the spectral upsampling of the mean over the
   // K layers of the Wiener deconvolutions (needs preinverse_layers > 0).
   bool residual_preinverse = false;
+  // true = the cube head adds to the spectral Wiener cube of the image
+  // (spectral_wiener.h; exclusive with residual_preinverse): its prior is the
+  // buffers set by set_spectral_prior, its PSFs the owner's set_band_psf.
+  bool residual_spectral_wiener = false;
   // The residual's spectral-upsampling weights: false = a buffer (the paper's
   // fixed map), true = a parameter started at the given weights (learned).
   bool learned_spectral_map = false;
@@ -65,7 +70,9 @@ class HsdNetImpl : public torch::nn::Module {
   // image [B, 3, H, W] (linear sensor RGB) -> cube and depth. With the
   // pre-inversion on, `preinverse` [B, 3K, H, W] is its input beside the image;
   // undefined: computed from the image (preinverse(image)).
-  NetOutput forward(const torch::Tensor& image, const torch::Tensor& preinverse = {});
+  // With residual_spectral_wiener, `base` [B, L, H, W] is the residual's base
+  // (undefined: spectral_wiener(image)).
+  NetOutput forward(const torch::Tensor& image, const torch::Tensor& preinverse = {}, const torch::Tensor& base = {});
   // The RGB PSFs [K, 3, P, P] of the pre-inversion's layers (camera_rgb_psfs);
   // set by the owner before forward whenever the optics change (they may carry
   // a gradient to the DOE). Not a parameter or buffer: the optics own them.
@@ -73,6 +80,18 @@ class HsdNetImpl : public torch::nn::Module {
   const torch::Tensor& preinverse_psf() const { return preinverse_psf_; }
   // image [B, 3, H, W] -> its Wiener deconvolutions [B, 3K, H, W].
   torch::Tensor preinverse(const torch::Tensor& image) const;
+  // The spectral Wiener base (residual_spectral_wiener): its prior (mean [L],
+  // covariance [L, L], noise variance σ², the camera response omega [3, L]),
+  // kept as buffers (so checkpoints and exports carry them), and the band
+  // PSFs [L, K, P, P] of the current optics (set like set_preinverse_psf).
+  void set_spectral_prior(const torch::Tensor& mean, const torch::Tensor& covariance, double noise_var,
+                          const torch::Tensor& omega);
+  void set_band_psf(const torch::Tensor& psf);
+  const torch::Tensor& band_psf() const { return band_psf_; }
+  // The prior in the buffers (float32; its psd_exponent the default).
+  SpectralPrior spectral_prior() const { return {sw_mean_, sw_cov_, sw_noise_var_.item<double>()}; }
+  // image [B, 3, H, W] -> the spectral Wiener cube [B, L, H, W] (float32).
+  torch::Tensor spectral_wiener(const torch::Tensor& image) const;
   const NetOptions& options() const { return opt_; }
   // The residual's spectral-upsampling weights [L, C] (a buffer, or a
   // parameter when learned_spectral_map; "upsampling_weights" either way).
@@ -98,6 +117,8 @@ class HsdNetImpl : public torch::nn::Module {
   torch::nn::Conv2d head_hs_{nullptr}, head_depth_{nullptr};
   torch::Tensor weights_;  // buffer [L, C]
   torch::Tensor preinverse_psf_;  // [K, C, P, P] or undefined
+  torch::Tensor band_psf_;        // [L, K, P, P] or undefined
+  torch::Tensor sw_mean_, sw_cov_, sw_noise_var_, sw_omega_;  // buffers (residual_spectral_wiener)
 };
 TORCH_MODULE(HsdNet);
 

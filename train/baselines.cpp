@@ -6,6 +6,8 @@
 #include <torch/torch.h>
 
 #include "common/error.h"
+#include "data/illuminant_augment.h"
+#include "data/spectral_moments.h"
 #include "model/spectral_upsampling.h"
 #include "model/wiener_preinverse.h"
 
@@ -22,6 +24,21 @@ double median_inverse_depth(const std::vector<data::LoadedScene>& scenes) {
   if (all.numel() == 0) throw InputError("constant-depth baseline: the training split has no valid depth pixel");
   // The lower median (torch's convention), exact for any count.
   return all.median().item<double>();
+}
+
+model::SpectralPrior training_spectral_prior(const std::vector<data::LoadedScene>& train_scenes, const Config& cfg,
+                                             const optics::SensorModel& sensor) {
+  const data::IlluminantBank bank(cfg.data.illuminants, cfg.optics.wavelengths_m(), cfg.optics.band_width_m());
+  const data::SpectralMoments mo =
+      data::radiance_moments(train_scenes, bank.spectra(), cfg.data.intensity_min, cfg.data.intensity_max);
+  const torch::Tensor omega = sensor.omega.cpu().to(torch::kFloat64);
+  const double y_mean = torch::matmul(omega, mo.mean).mean().item<double>();
+  const auto& nm = sensor.noise;
+  model::SpectralPrior p;
+  p.mean = mo.mean.to(torch::kFloat32);
+  p.covariance = mo.covariance.to(torch::kFloat32);
+  p.noise_var = model::mean_noise_variance(nm.std_min, nm.std_max, nm.photons_at_saturation, y_mean);
+  return p;
 }
 
 torch::Tensor constant_depth_map(const torch::Tensor& like, double inv_depth_per_m) {

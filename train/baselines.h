@@ -10,6 +10,10 @@
 //     sensor image's Wiener deconvolutions (model/wiener_preinverse.h) with
 //     the imaging DOE's RGB PSFs: a sharper cube with no learning, and the
 //     network's residual input when model.residual = "preinverse".
+//   spectral Wiener: the LMMSE cube of the sensor image (model/spectral_wiener.h)
+//     under the training radiance's spectral moments, with the imaging DOE's
+//     band PSFs: the best linear answer, and the network's residual base when
+//     model.residual = "spectral_wiener".
 // Beside them, a reference that uses the truth (not a baseline a model could
 // be, but a ruler for depth): the resolution oracle (data/depth_structure.h);
 // the w at which its RMSE equals a model's is that model's effective depth
@@ -19,7 +23,10 @@
 
 #include <torch/types.h>
 
+#include "common/config.h"
 #include "data/dataset.h"
+#include "model/spectral_wiener.h"
+#include "optics/sensor.h"
 
 namespace hsd::train {
 
@@ -36,6 +43,13 @@ torch::Tensor wiener_mean_image(const torch::Tensor& image, const torch::Tensor&
 // upsampling_weights [L, C] -> [B, L, H, W].
 torch::Tensor wiener_upsampling_cube(const torch::Tensor& image, const torch::Tensor& rgb_psf, double reg,
                                      const torch::Tensor& upsampling_weights);
+
+// The spectral Wiener baseline's prior: the moments of the training split's
+// radiance as the trainer lights it (data.illuminants, data.intensity_min/max;
+// data/spectral_moments.h) and the sensor model's mean noise variance at the
+// mean image level (model::mean_noise_variance).
+model::SpectralPrior training_spectral_prior(const std::vector<data::LoadedScene>& train_scenes, const Config& cfg,
+                                             const optics::SensorModel& sensor);
 
 // The constant-depth map: depth_m [.., H, W] of `like`'s shape, every value 1 / inv_depth [m].
 torch::Tensor constant_depth_map(const torch::Tensor& like, double inv_depth_per_m);

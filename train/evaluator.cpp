@@ -4,6 +4,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <random>
 
 #include <torch/torch.h>
@@ -63,8 +64,17 @@ EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& spli
   const torch::Tensor model_map = trainer.net()->options().learned_spectral_map
                                       ? trainer.net()->upsampling_weights().detach().cpu()
                                       : torch::Tensor();
+  std::optional<model::SpectralPrior> prior;
+  if (trainer.net()->options().residual_spectral_wiener) {
+    prior = trainer.net()->spectral_prior();
+  } else if (data::has_manifest(cfg.data.root) && !data::read_manifest(cfg.data.root).split("train").empty()) {
+    const auto scenes = data::load_split(cfg.data.root, "train", cfg.optics.wavelengths_m(), cfg.optics.band_width_m(),
+                                         cfg.data.loader_threads);
+    prior = training_spectral_prior(scenes, cfg, trainer.sensor());
+  }
   EvalResult r = evaluate(trainer.psf(), trainer.sensor(), trainer.doe().height().detach(), net, cfg, split, out_dir,
-                          trainer.baseline_inv_depth(), camera_psf ? camera_psf : trainer.fixed_psf(), model_psf, model_map);
+                          trainer.baseline_inv_depth(), camera_psf ? camera_psf : trainer.fixed_psf(), model_psf, model_map,
+                          prior ? &*prior : nullptr);
   trainer.net()->train();
   return r;
 }
@@ -72,7 +82,7 @@ EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& spli
 EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& sensor, const torch::Tensor& height_m,
                     const Reconstructor& reconstruct, const Config& cfg, const std::string& split,
                     const std::string& out_dir, double baseline_inv_depth, const optics::PsfProvider& fixed_psf,
-                    const torch::Tensor& model_psf, const torch::Tensor& model_map) {
+                    const torch::Tensor& model_psf, const torch::Tensor& model_map, const model::SpectralPrior* sw_prior) {
   const std::string root = cfg.data.root;
   const auto bands = cfg.optics.wavelengths_m();
   const double bw = cfg.optics.band_width_m();
@@ -94,8 +104,8 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     throw InputError("the model's spectral map must be [" + std::to_string(up_w.size(0)) + ", " +
                      std::to_string(up_w.size(1)) + "] (optics.wavelengths_nm x RGB), got " + c10::str(model_map.sizes()));
   const torch::Tensor imaging_psf = optics::imaging_psf_stack(psf, h, fixed_psf).cpu();
-  const torch::Tensor rgb_psf =
-      model::camera_rgb_psfs(model_psf.defined() ? model_psf.detach().cpu() : imaging_psf, sensor.omega.cpu());
+  const torch::Tensor band_psf = model_psf.defined() ? model_psf.detach().cpu() : imaging_psf;
+  const torch::Tensor rgb_psf = model::camera_rgb_psfs(band_psf, sensor.omega.cpu());
   int cc_count = 0;
   double cc_sum = 0.0;
   log::Progress progress("evaluate", long(scenes.size()));
@@ -135,6 +145,11 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     const torch::Tensor wup = model::spectral_upsample(up_w, wmean)[0];
     m.baseline_wiener_hs_psnr_db = psnr_db(wup, radiance, m.data_range, valid);
     m.baseline_wiener_hs_ssim = ssim(wup, radiance, m.data_range, valid);
+    if (sw_prior) {  // the spectral Wiener (LMMSE) cube through the PSFs the system believes it has
+      const torch::Tensor sw = model::spectral_wiener_cube(img.image.cpu(), band_psf, sensor.omega.cpu(), *sw_prior)[0];
+      m.baseline_spectral_wiener_hs_psnr_db = psnr_db(sw, radiance, m.data_range, valid);
+      m.baseline_spectral_wiener_hs_ssim = ssim(sw, radiance, m.data_range, valid);
+    }
     if (model_map.defined()) {  // the network's own residual base, no U-Net
       const torch::Tensor base = cfg.model.residual == ResidualBase::preinverse ? wmean : img.image.cpu();
       const torch::Tensor mb = model::spectral_upsample(model_map.to(torch::kFloat32), base)[0];
@@ -215,6 +230,12 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     a.baseline_wiener_hs_psnr_db += m.baseline_wiener_hs_psnr_db / n;
     a.baseline_wiener_hs_ssim += m.baseline_wiener_hs_ssim / n;
   }
+  if (sw_prior) {
+    a.baseline_spectral_wiener_hs_psnr_db = a.baseline_spectral_wiener_hs_ssim = 0.0;
+    for (const auto& m : res.scenes)
+      a.baseline_spectral_wiener_hs_psnr_db += m.baseline_spectral_wiener_hs_psnr_db / n,
+          a.baseline_spectral_wiener_hs_ssim += m.baseline_spectral_wiener_hs_ssim / n;
+  }
   if (model_map.defined()) {
     a.model_base_hs_psnr_db = a.model_base_hs_ssim = 0.0;
     for (const auto& m : res.scenes) a.model_base_hs_psnr_db += m.model_base_hs_psnr_db / n, a.model_base_hs_ssim += m.model_base_hs_ssim / n;
@@ -242,6 +263,10 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     j["baseline_upsampling_hs_ssim"] = m.baseline_upsampling_hs_ssim;
     j["baseline_wiener_hs_psnr_db"] = m.baseline_wiener_hs_psnr_db;
     j["baseline_wiener_hs_ssim"] = m.baseline_wiener_hs_ssim;
+    if (std::isfinite(m.baseline_spectral_wiener_hs_psnr_db)) {
+      j["baseline_spectral_wiener_hs_psnr_db"] = m.baseline_spectral_wiener_hs_psnr_db;
+      j["baseline_spectral_wiener_hs_ssim"] = m.baseline_spectral_wiener_hs_ssim;
+    }
     if (std::isfinite(m.model_base_hs_psnr_db)) {
       j["model_base_hs_psnr_db"] = m.model_base_hs_psnr_db;
       j["model_base_hs_ssim"] = m.model_base_hs_ssim;
@@ -269,6 +294,9 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
                "baselines on the same pixels: the spectral-upsampling cube of the same sensor image (no network), the "
                "same upsampling of the mean over the depth layers of its Wiener deconvolutions (baseline_wiener_*, "
                "rho = model.preinverse_reg, no network)" +
+               std::string(sw_prior ? ", the spectral Wiener cube (baseline_spectral_wiener_*: the LMMSE estimate of the "
+                                      "cube from the image under the training radiance's spectral mean and covariance, "
+                                      "every depth layer equally likely, no network)" : "") +
                std::string(model_map.defined() ? ", the network's residual base alone (model_base_*: its learned spectral "
                                                   "map on its residual base, no U-Net)" : "") +
                " and one constant depth (the training split's median inverse depth); reference_oracle_depth_rmse_m: the "
@@ -302,6 +330,14 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
   md += "\nIn brackets: the baseline on the same pixels (HS: the upsampling cube of the sensor image alone; depth: ";
   md += constant_known ? "the constant " + c10::str(1.0 / baseline_inv_depth) + " m" : std::string("not known");
   md += "). A model that does not beat its baseline has learned nothing from the image.\n";
+  if (std::isfinite(a.baseline_spectral_wiener_hs_psnr_db)) {
+    std::snprintf(buf, sizeof buf,
+                  "\nThe spectral Wiener baseline (the LMMSE cube under the training radiance's spectral statistics, no "
+                  "network), mean over the scenes: HS PSNR %.2f dB, SSIM %.4f; the model is %+.2f dB from it.\n",
+                  a.baseline_spectral_wiener_hs_psnr_db, a.baseline_spectral_wiener_hs_ssim,
+                  a.hs_psnr_db - a.baseline_spectral_wiener_hs_psnr_db);
+    md += buf;
+  }
   if (std::isfinite(a.model_base_hs_psnr_db)) {
     std::snprintf(buf, sizeof buf,
                   "\nThe network's residual base alone (its learned spectral map on its residual base, no U-Net), mean "

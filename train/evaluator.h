@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "common/config.h"
+#include "model/spectral_wiener.h"
 #include "train/trainer.h"
 
 namespace hsd::train {
@@ -26,6 +27,8 @@ struct SceneMetrics {
   double baseline_constant_depth_rmse_m = std::nan(""), baseline_constant_depth_mae_m = std::nan("");
   double baseline_upsampling_hs_psnr_db = 0, baseline_upsampling_hs_ssim = 0;
   double baseline_wiener_hs_psnr_db = 0, baseline_wiener_hs_ssim = 0;  // Wiener deconvolution + upsampling
+  // The spectral Wiener (LMMSE) cube (baselines.h); NaN when no prior is known.
+  double baseline_spectral_wiener_hs_psnr_db = std::nan(""), baseline_spectral_wiener_hs_ssim = std::nan("");
   // The network's residual base alone (model.spectral_map = "learned": its
   // learned map on its base, no U-Net); NaN when the map is the fixed one.
   double model_base_hs_psnr_db = std::nan(""), model_base_hs_ssim = std::nan("");
@@ -58,14 +61,18 @@ using Reconstructor = std::function<std::pair<torch::Tensor, torch::Tensor>(cons
 // PSFs), and the constant depth 1 / baseline_inv_depth [1/m] (NaN: not
 // reported, with a warning). `model_map` [L, 3]: a learned spectral map of the
 // network's residual (model.spectral_map = "learned"), scored on its residual
-// base (cfg.model.residual) alone; undefined: not reported.
+// base (cfg.model.residual) alone; undefined: not reported. `sw_prior`: the
+// spectral Wiener baseline's prior (training_spectral_prior; the camera's
+// response is the sensor's); nullptr: not reported.
 EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& sensor, const torch::Tensor& height_m,
                     const Reconstructor& reconstruct, const Config& cfg, const std::string& split,
                     const std::string& out_dir, double baseline_inv_depth = std::nan(""),
                     const optics::PsfProvider& fixed_psf = nullptr, const torch::Tensor& model_psf = {},
-                    const torch::Tensor& model_map = {});
+                    const torch::Tensor& model_map = {}, const model::SpectralPrior* sw_prior = nullptr);
 
 // The same with a trainer's optics, DOE and network (load a checkpoint first).
+// The spectral Wiener baseline's prior: the network's own (model.residual =
+// "spectral_wiener"), else the training split of data.root when it has one.
 // `camera_psf` (a fixed provider, e.g. of a measured or perturbed PSF file):
 // the scenes are imaged through it instead of the trainer's PSFs, while the
 // network (its Wiener pre-inversion) and the Wiener baseline keep the

@@ -19,6 +19,7 @@
 #include "data/synthetic_dataset.h"
 #include "model/net_options.h"
 #include "model/spectral_upsampling.h"
+#include "model/spectral_wiener.h"
 #include "model/wiener_preinverse.h"
 #include "optics/fabrication_error.h"
 #include "optics/psf_source.h"
@@ -237,6 +238,10 @@ void Trainer::attach_data() {
   if (cfg_.model.head_init == HeadInit::baselines && !network_started_) net_->start_at_baselines(baseline_inv_depth_);
   const data::Manifest m = data::read_manifest(root);
   bank_ = std::make_unique<data::IlluminantBank>(cfg_.data.illuminants, bands, bw);
+  if (net_->options().residual_spectral_wiener) {  // the prior: the training radiance's moments, the sensor's noise
+    const model::SpectralPrior p = training_spectral_prior(train_scenes_, cfg_, sensor_);
+    net_->set_spectral_prior(p.mean, p.covariance, p.noise_var, sensor_.omega.to(torch::kFloat32));
+  }
   const int64_t rendered = cfg_.data.patch_size_px + 2 * margin_;
   sampler_ = std::make_unique<data::PatchSampler>(train_scenes_, rendered);
   // Validation: the val split (the train split with other patches if there is none).
@@ -282,14 +287,18 @@ std::vector<int64_t> Trainer::all_bands() const {
 
 model::NetOutput Trainer::reconstruct_window(const torch::Tensor& window) {
   const torch::Tensor J = centre(window);
-  if (net_->options().preinverse_layers == 0) return net_->forward(J);
-  return net_->forward(J, centre(net_->preinverse(window)));
+  const torch::Tensor pre = net_->options().preinverse_layers > 0 ? centre(net_->preinverse(window)) : torch::Tensor();
+  const torch::Tensor base = net_->options().residual_spectral_wiener ? centre(net_->spectral_wiener(window)) : torch::Tensor();
+  return net_->forward(J, pre, base);
 }
 
 void Trainer::refresh_preinverse() {
-  if (net_->options().preinverse_layers == 0) return;
+  const bool pre = net_->options().preinverse_layers > 0, sw = net_->options().residual_spectral_wiener;
+  if (!pre && !sw) return;
   torch::NoGradGuard no_grad;
-  net_->set_preinverse_psf(model::camera_rgb_psfs(psf_stack(), sensor_.omega));
+  const torch::Tensor all = psf_stack();
+  if (pre) net_->set_preinverse_psf(model::camera_rgb_psfs(all, sensor_.omega));
+  if (sw) net_->set_band_psf(all);
 }
 
 Batch Trainer::train_batch(int64_t step) const {
@@ -329,11 +338,12 @@ Trainer::StepImage Trainer::render_step(const Batch& batch, int64_t step, optics
   // (and as hsd_fabricate --tolerance evaluates it): those are a second call
   // of the provider.
   StepImage out;
-  if (net_->options().preinverse_layers > 0) {
+  if (net_->options().preinverse_layers > 0 || net_->options().residual_spectral_wiener) {
     auto every_psf = [&](const torch::Tensor& hh) { return provider ? provider(hh, all_layers(), all_bands()) : psf_->compute(hh).psf; };
     const torch::Tensor all = every_psf(h);
     const torch::Tensor known = h.is_same(design) ? all : every_psf(design);
-    out.rgb_psf = model::camera_rgb_psfs(known, sensor_.omega);
+    if (net_->options().preinverse_layers > 0) out.rgb_psf = model::camera_rgb_psfs(known, sensor_.omega);
+    if (net_->options().residual_spectral_wiener) out.band_psf = known;
     provider = optics::fixed_psf_provider(all);
   }
   out.image = optics::simulate_sensor(*psf_, sensor_, h, batch.radiance, batch.depth_m, gens, optics::LeaveOut(), provider);
@@ -385,7 +395,12 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
     net_->set_preinverse_psf(si.rgb_psf);
     pre_in = centre(net_->preinverse(window));
   }
-  const model::NetOutput out = net_->forward(centre(window), pre_in);
+  torch::Tensor base_in;  // the spectral Wiener base of the whole window, then its centre
+  if (si.band_psf.defined()) {
+    net_->set_band_psf(si.band_psf);
+    base_in = centre(net_->spectral_wiener(window));
+  }
+  const model::NetOutput out = net_->forward(centre(window), pre_in, base_in);
   timer.lap(&StepProfile::network_forward);
   const LossTerms L =
       reconstruction_loss(out.hs, centre(batch.radiance), out.inv_depth, 1.0 / centre(batch.depth_m), weights_);
@@ -403,6 +418,7 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   apply_gradients(step);
   // The pre-inversion's graph is spent; refresh_preinverse() for the new DOE.
   if (si.rgb_psf.defined()) net_->set_preinverse_psf(si.rgb_psf.detach());
+  if (si.band_psf.defined()) net_->set_band_psf(si.band_psf.detach());
   timer.lap(&StepProfile::optimizer);
   if (prof) ++prof->steps;
   st.loss = terms[0], st.hs = terms[1], st.depth = terms[2], st.tv = terms[3];
@@ -433,7 +449,9 @@ ValStats Trainer::validate() {
     const torch::Tensor I = centre(Iw), Z = centre(Zw), J = centre(img.image);
     // The window's deconvolutions once: the network's input and the Wiener baseline (reconstruct_window's work).
     const torch::Tensor pre = K > 0 ? centre(net_->preinverse(img.image)) : torch::Tensor();
-    const model::NetOutput out = K > 0 ? net_->forward(J, pre) : net_->forward(J);
+    const torch::Tensor base =
+        net_->options().residual_spectral_wiener ? centre(net_->spectral_wiener(img.image)) : torch::Tensor();
+    const model::NetOutput out = net_->forward(J, pre, base);
     se_up += (model::spectral_upsample(upsampling_w_.to(J.device()), J) - I).pow(2).sum().item<double>();
     if (K > 0) {  // the Wiener baseline: the layers' mean deconvolution of the window, upsampled
       const torch::Tensor wm = model::preinverse_layer_mean(pre, K);

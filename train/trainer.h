@@ -111,8 +111,9 @@ class Trainer {
   // Every band's and depth's imaging PSF [L, Z, P, P] (the DOE's or the fixed stack).
   torch::Tensor psf_stack() const;
   // model.preinverse = "wiener": hands the network the RGB PSFs of the current
-  // DOE (no gradient); called by validation, pictures, evaluation and after a
-  // checkpoint is loaded. Training steps set their own (with the gradient).
+  // DOE (no gradient), and with model.residual = "spectral_wiener" its band
+  // PSFs; called by validation, pictures, evaluation and after a checkpoint
+  // is loaded. Training steps set their own (with the gradient).
   void refresh_preinverse();
   // The constant-depth baseline's inverse depth [1/m]: the training split's
   // median (attach_data, or a checkpoint that stores it); NaN when unknown.
@@ -132,7 +133,8 @@ class Trainer {
   // clipped and applied.
   struct StepImage {
     optics::SensorImage image;
-    torch::Tensor rgb_psf;  // [Z, 3, P, P] of the design, with the gradient; undefined without a pre-inversion
+    torch::Tensor rgb_psf;   // [Z, 3, P, P] of the design, with the gradient; undefined without a pre-inversion
+    torch::Tensor band_psf;  // [L, Z, P, P] of the design, with the gradient; undefined without a spectral Wiener base
   };
   StepStats set_learning_rates(int64_t step);
   StepImage render_step(const Batch& batch, int64_t step, optics::PsfProvider provider);

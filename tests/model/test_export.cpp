@@ -143,3 +143,36 @@ TEST_CASE("export: a network with the Wiener pre-inversion exports with its PSFs
   CHECK(loaded.attr("preinverse_psf").toTensor().scalar_type() == torch::kFloat32);  // the deconvolution stays float32
   CHECK(torch::equal(loaded.attr("p_upsampling_weights").toTensor(), net->upsampling_weights()));
 }
+
+TEST_CASE("export: a network with the spectral Wiener residual exports with its PSFs and prior", "[export][spectral_wiener]") {
+  torch::manual_seed(10);
+  model::NetOptions o;
+  o.bands = 4, o.base_width = 8, o.levels = 2, o.norm = NormKind::group, o.residual_spectral_wiener = true;
+  o.preinverse_layers = GENERATE(0, 2);  // with and without the Wiener pre-inversion as input
+  INFO("preinverse layers " << o.preinverse_layers);
+  model::HsdNet net(o, torch::rand({4, 3}));
+  net->eval();
+  const torch::Tensor a = torch::rand({4, 4});
+  net->set_spectral_prior(torch::rand({4}) * 0.3, 1e-3 * (torch::matmul(a, a.t()) + 0.1 * torch::eye(4)), 1e-5,
+                          torch::rand({3, 4}));
+  torch::Tensor psf = torch::rand({4, 2, 9, 9});
+  psf = psf / psf.sum({2, 3}, true);
+  if (o.preinverse_layers > 0) net->set_preinverse_psf(torch::rand({2, 3, 9, 9}) / 81.0);
+  CHECK_THROWS_AS(model::export_torchscript(net, {{400e-9, 450e-9, 500e-9, 550e-9}, {}, {}}), InputError);  // no band PSFs yet
+  net->set_band_psf(psf);
+  torch::NoGradGuard ng;
+  const torch::Tensor x = torch::rand({2, 3, 27, 22});
+  const model::NetOutput ref = net->forward(x);
+  torch::jit::Module m = model::export_torchscript(net, {{400e-9, 450e-9, 500e-9, 550e-9}, {}, {}});
+  const fs::path dir = fs::temp_directory_path() / "hsd_test_export_spectral_wiener";
+  fs::create_directories(dir);
+  m.save((dir / "reconstructor.pt").string());
+  torch::jit::Module loaded = model::load_reconstructor((dir / "reconstructor.pt").string());
+  const auto [hs, d] = model::run_reconstructor(loaded, x);
+  CHECK((hs - ref.hs).abs().max().item<double>() <= 1e-5 * ref.hs.abs().max().item<double>());
+  CHECK((d - ref.depth_m).abs().max().item<double>() <= 1e-5 * ref.depth_m.abs().max().item<double>());
+  model::set_reconstructor_precision(loaded, torch::kBFloat16);
+  CHECK(loaded.attr("sw_psf").toTensor().scalar_type() == torch::kFloat32);
+  CHECK(loaded.attr("p_sw_covariance").toTensor().scalar_type() == torch::kFloat32);
+  fs::remove_all(dir);
+}

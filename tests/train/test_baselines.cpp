@@ -13,9 +13,12 @@
 #include "common/error.h"
 #include "data/dataset.h"
 #include "data/depth_structure.h"
+#include "data/illuminant_augment.h"
+#include "data/spectral_moments.h"
 #include "data/synthetic_dataset.h"
 #include "helpers.h"
 #include "model/spectral_upsampling.h"
+#include "model/spectral_wiener.h"
 #include "model/unet.h"
 #include "model/wiener_preinverse.h"
 #include "optics/all_in_focus.h"
@@ -169,6 +172,28 @@ TEST_CASE("baselines: a network that outputs the baselines scores exactly the ba
     CHECK(m.model_base_hs_psnr_db != m.baseline_upsampling_hs_psnr_db);
   }
   CHECK(Json::parse(std::ifstream(root / "eval_m" / "metrics.json")).contains("model_base_hs_psnr_db"));
+  // The spectral Wiener baseline: its prior from the training split (the
+  // moments as the trainer lights them); a "network" answering with the LMMSE
+  // cube scores exactly it; absent without a prior.
+  CHECK(std::isnan(r.mean.baseline_spectral_wiener_hs_psnr_db));
+  const model::SpectralPrior prior = train::training_spectral_prior(train_split, cfg, sensor);
+  const data::IlluminantBank bank(cfg.data.illuminants, bands, bw);
+  const data::SpectralMoments mo = data::radiance_moments(train_split, bank.spectra(), cfg.data.intensity_min, cfg.data.intensity_max);
+  CHECK((prior.mean - mo.mean.to(torch::kFloat32)).abs().max().item<double>() < 1e-7);
+  CHECK(prior.noise_var > cfg.sensor.noise_std * cfg.sensor.noise_std * 0.999);  // read noise at least
+  const torch::Tensor band_psf = optics::imaging_psf_stack(sim, h, nullptr);
+  auto lmmse = [&](const torch::Tensor& x) {
+    return std::make_pair(model::spectral_wiener_cube(x, band_psf, sensor.omega, prior).to(torch::kFloat32),
+                          train::constant_depth_map(x.narrow(1, 0, 1), median));
+  };
+  const train::EvalResult rs = train::evaluate(sim, sensor, h, lmmse, cfg, "test", (root / "eval_s").string(), median,
+                                               nullptr, {}, {}, &prior);
+  for (const auto& m : rs.scenes) {
+    CHECK(m.hs_psnr_db == m.baseline_spectral_wiener_hs_psnr_db);
+    CHECK(m.hs_ssim == m.baseline_spectral_wiener_hs_ssim);
+    CHECK(m.baseline_spectral_wiener_hs_psnr_db != m.baseline_wiener_hs_psnr_db);
+  }
+  CHECK(Json::parse(std::ifstream(root / "eval_s" / "metrics.json")).contains("baseline_spectral_wiener_hs_psnr_db"));
   // metrics.json carries the contract's baseline keys, mean and per scene.
   const Json j = Json::parse(std::ifstream(root / "eval" / "metrics.json"));
   CHECK_FALSE(j.contains("model_base_hs_psnr_db"));

@@ -1,0 +1,49 @@
+// The spectral Wiener cube: the linear minimum-mean-square-error (LMMSE)
+// estimate of the hyperspectral cube x from the RGB sensor image y, with the
+// image formation of the paper's Eq. 2 for one depth layer z,
+//   Y_c(f) = Σ_λ Ω_c,λ K_λ,z(f) X_λ(f) + N_c(f)        (K: OTF, K(0) = 1),
+// written per spatial frequency f as Y = H_z X + N, H_z [3, L]. The prior is
+// a stationary Gaussian scene, separable in space and spectrum:
+//   E[x] = μ (one spectrum for every pixel),  E[X Xᴴ](f) = S(f) Σ,
+// Σ [L, L] the covariance of the scene's spectra (measured on the training
+// split, data/spectral_moments.h), S(f) ∝ (|f| + f₀)^−α the natural images'
+// power law (α = 2, mean 1 over f ≠ 0, f₀ one cycle per FFT side; the DC term
+// ×10⁴, so the mean spectrum follows the image), and white noise of
+// variance σ² per pixel. The depth is unknown: z is uniform over the K layers,
+// and the estimator is the LMMSE one over that mixture,
+//   X̂(f) = S Σ H̄ᴴ (S · E_z[H_z Σ H_zᴴ] + σ² I)⁻¹ (Y − Ω μ δ_f0),  H̄ = E_z[H_z],
+// one 3×3 Hermitian solve per frequency, then x̂ = μ + F⁻¹ X̂. A band's
+// detail where its own channel's OTF is lost (the chromatic blur of the outer
+// bands) comes back from the channels that keep it, in proportion to the
+// bands' covariance: the spectral prior does the work a per-channel Wiener
+// filter (wiener_preinverse.h) cannot. A classical baseline, and the cube
+// head's residual base with model.residual = "spectral_wiener".
+// Borders as in wiener_preinverse.h (edge replication to an FFT-friendly size
+// at least H + P − 1). The filter is computed in float64 (the solves and the
+// DC weight span many decades); the image is filtered in its own precision
+// (float32, or float64 for gradient checks). Differentiable in the image and
+// the PSFs.
+#pragma once
+#include <torch/types.h>
+
+namespace hsd::model {
+
+struct SpectralPrior {
+  torch::Tensor mean;        // μ [L], radiance
+  torch::Tensor covariance;  // Σ [L, L], symmetric positive semi-definite
+  double noise_var = 0;      // σ² per pixel, in the image's units (> 0)
+  double psd_exponent = 2.0; // α of S(f)
+};
+
+// image [B, 3, H, W], psf [L, K, P, P] (P odd, each summing to ≤ 1), omega
+// [3, L] (the camera response that made the image), prior -> [B, L, H, W].
+torch::Tensor spectral_wiener_cube(const torch::Tensor& image, const torch::Tensor& psf, const torch::Tensor& omega,
+                                   const SpectralPrior& prior);
+
+// σ² of the sensor model (optics/sensor_noise.h) averaged over its draws, at
+// the mean image level y_mean: E[σ_read²] + y_mean / photons (read σ uniform
+// on [std_min, std_max], or fixed at std_max when std_min < 0; photons 0 = no
+// shot noise); floored at 1e-8 so the filter stays defined without noise.
+double mean_noise_variance(double std_min, double std_max, double photons_at_saturation, double y_mean);
+
+}  // namespace hsd::model

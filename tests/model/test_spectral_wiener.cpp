@@ -1,0 +1,223 @@
+// The spectral Wiener cube (model/spectral_wiener.h) and its prior
+// (data/spectral_moments.h): closed forms (an invertible camera returns Ω⁻¹ y;
+// a flat image returns the prior's LMMSE spectral map; identical layers are
+// one layer), recovery of a blurred band through another band's channel,
+// a float64 gradient check, the moments by hand, the noise variance by hand,
+// and the network's residual on it (training, checkpoint).
+#include <catch2/catch.hpp>
+
+#include <torch/torch.h>
+
+#include <filesystem>
+
+#include "common/error.h"
+#include "data/spectral_moments.h"
+#include "helpers.h"
+#include "model/spectral_wiener.h"
+#include "model/unet.h"
+#include "train/trainer.h"
+
+using namespace hsd;
+namespace F = torch::nn::functional;
+
+namespace {
+
+torch::Tensor delta_psfs(int64_t L, int64_t K, int64_t P, c10::ScalarType dtype) {
+  torch::Tensor d = torch::zeros({L, K, P, P}, dtype);
+  d.select(2, P / 2).select(2, P / 2).fill_(1.0);
+  return d;
+}
+
+// A random symmetric positive-definite L x L covariance.
+torch::Tensor spd(int64_t L, double scale) {
+  const torch::Tensor a = torch::rand({L, L}, torch::kFloat64);
+  return scale * (torch::matmul(a, a.t()) + 0.1 * torch::eye(L, torch::kFloat64));
+}
+
+}  // namespace
+
+TEST_CASE("spectral Wiener: an invertible camera without blur returns omega^-1 y", "[spectral_wiener]") {
+  torch::manual_seed(11);
+  const torch::Tensor omega = torch::eye(3, torch::kFloat64) + 0.3 * torch::rand({3, 3}, torch::kFloat64);
+  const torch::Tensor x = torch::rand({2, 3, 11, 14}, torch::kFloat64);
+  const torch::Tensor y = torch::einsum("cl,blhw->bchw", {omega, x});
+  model::SpectralPrior prior{torch::rand({3}, torch::kFloat64), spd(3, 0.01), 1e-14};
+  const torch::Tensor xh = model::spectral_wiener_cube(y, delta_psfs(3, 2, 5, torch::kFloat64), omega, prior);
+  REQUIRE(xh.sizes() == x.sizes());
+  CHECK((xh - x).abs().max().item<double>() < 1e-6);
+}
+
+TEST_CASE("spectral Wiener: a flat image gets the prior's LMMSE spectrum, and identical layers are one layer",
+          "[spectral_wiener]") {
+  torch::manual_seed(12);
+  const int64_t L = 6;
+  const torch::Tensor omega = torch::rand({3, L}, torch::kFloat64);
+  const torch::Tensor mu = torch::rand({L}, torch::kFloat64), sig = spd(L, 0.02);
+  const torch::Tensor yc = torch::tensor({0.3, 0.5, 0.2}, torch::kFloat64);
+  const torch::Tensor y = yc.view({1, 3, 1, 1}).expand({1, 3, 9, 10}).contiguous();
+  // Noise far below the DC term's signal: x = μ + Σ Ωᵀ (Ω Σ Ωᵀ)⁻¹ (y − Ω μ), whatever the blur.
+  const model::SpectralPrior prior{mu, sig, 1e-12};
+  const torch::Tensor st = torch::matmul(sig, omega.t());
+  const torch::Tensor expect = mu + torch::matmul(st, torch::linalg_solve(torch::matmul(omega, st), yc - torch::matmul(omega, mu)));
+  torch::Tensor blur = torch::rand({L, 1, 7, 7}, torch::kFloat64);
+  blur = blur / blur.sum({2, 3}, true);
+  const torch::Tensor xh = model::spectral_wiener_cube(y, blur, omega, prior);
+  for (int64_t l = 0; l < L; ++l) {
+    INFO("band " << l);
+    CHECK((xh[0][l] - expect[l]).abs().max().item<double>() < 1e-6);
+  }
+  // K copies of one layer are that layer (the mixture of equal OTFs).
+  const torch::Tensor img = torch::rand({1, 3, 9, 10}, torch::kFloat64);
+  const model::SpectralPrior p2{mu, sig, 1e-4};
+  const torch::Tensor one = model::spectral_wiener_cube(img, blur, omega, p2);
+  const torch::Tensor three = model::spectral_wiener_cube(img, blur.expand({L, 3, 7, 7}), omega, p2);
+  CHECK((one - three).abs().max().item<double>() < 1e-12);
+  // Bad input names the problem.
+  CHECK_THROWS_AS(model::spectral_wiener_cube(img, blur, omega, {mu, sig, 0.0}), InputError);
+  CHECK_THROWS_AS(model::spectral_wiener_cube(img, blur.narrow(0, 0, 3), omega, p2), InputError);
+  CHECK_THROWS_AS(model::spectral_wiener_cube(img, blur, omega, {mu.narrow(0, 0, 3), sig, 1e-4}), InputError);
+}
+
+TEST_CASE("spectral Wiener: a band blurred in its own channel comes back through a correlated band's sharp channel",
+          "[spectral_wiener]") {
+  // Two bands seen by two channels each alone (the third sees both a little);
+  // band 1's PSF is wide, band 0's a delta, and the bands are correlated
+  // (0.95): band 1's detail is recovered from band 0, where a per-channel
+  // deconvolution of the noisy image cannot.
+  torch::manual_seed(13);
+  const int64_t P = 15;
+  const torch::Tensor t = torch::arange(P, torch::kFloat64) - double(P / 2);
+  torch::Tensor g = torch::exp(-(t.view({-1, 1}).square() + t.view({1, -1}).square()) / (2 * 3.0 * 3.0));
+  g = g / g.sum();
+  torch::Tensor psf = torch::zeros({2, 1, P, P}, torch::kFloat64);
+  psf[0][0][P / 2][P / 2] = 1.0;
+  psf[1][0].copy_(g);
+  const torch::Tensor omega = torch::tensor({1.0, 0.0, 0.0, 1.0, 0.1, 0.1}, torch::kFloat64).view({3, 2});
+  // A scene: one texture u, band 1 = 0.95 u + a little independent texture.
+  const torch::Tensor u = F::interpolate(torch::rand({1, 1, 16, 16}, torch::kFloat64),
+                                         F::InterpolateFuncOptions().size(std::vector<int64_t>{64, 64}).mode(torch::kBicubic).align_corners(false));
+  const torch::Tensor v = F::interpolate(torch::rand({1, 1, 16, 16}, torch::kFloat64),
+                                         F::InterpolateFuncOptions().size(std::vector<int64_t>{64, 64}).mode(torch::kBicubic).align_corners(false));
+  const torch::Tensor x = torch::cat({u, 0.95 * u + 0.05 * v}, 1);
+  // The image: band 1 blurred (replicated borders), each channel its mix.
+  const torch::Tensor xp = F::pad(x.narrow(1, 1, 1), F::PadFuncOptions({P / 2, P / 2, P / 2, P / 2}).mode(torch::kReplicate));
+  const torch::Tensor b1 = F::conv2d(xp, g.flip({0, 1}).view({1, 1, P, P}));
+  const torch::Tensor blurred = torch::cat({x.narrow(1, 0, 1), b1}, 1);
+  const torch::Tensor y = torch::einsum("cl,blhw->bchw", {omega, blurred}) + 1e-3 * torch::randn({1, 3, 64, 64}, torch::kFloat64);
+  const torch::Tensor xf = x.flatten(2);
+  const torch::Tensor mu = xf.mean(2)[0];
+  const torch::Tensor cen = xf[0] - mu.view({2, 1});
+  const torch::Tensor sig = torch::matmul(cen, cen.t()) / double(cen.size(1));
+  const torch::Tensor xh = model::spectral_wiener_cube(y, psf, omega, {mu, sig, 1e-6});
+  auto rms = [](const torch::Tensor& a, const torch::Tensor& b) {  // away from the borders
+    return (a - b).narrow(2, 16, 32).narrow(3, 16, 32).square().mean().sqrt().item<double>();
+  };
+  const double blurred_err = rms(b1, x.narrow(1, 1, 1)), recovered = rms(xh.narrow(1, 1, 1), x.narrow(1, 1, 1));
+  INFO("band 1 rms error: blurred " << blurred_err << ", spectral Wiener " << recovered);
+  CHECK(recovered < 0.25 * blurred_err);
+}
+
+TEST_CASE("spectral Wiener: gradients in the image and the PSFs match central differences (float64)", "[spectral_wiener]") {
+  torch::manual_seed(14);
+  const int64_t L = 4;
+  const torch::Tensor x = torch::rand({1, 3, 9, 11}, torch::kFloat64).requires_grad_();
+  const torch::Tensor p = (torch::rand({L, 2, 5, 5}, torch::kFloat64) + 0.1).requires_grad_();
+  const torch::Tensor omega = torch::rand({3, L}, torch::kFloat64);
+  const model::SpectralPrior prior{torch::rand({L}, torch::kFloat64), spd(L, 0.01), 1e-3};
+  const torch::Tensor w = torch::randn({1, L, 9, 11}, torch::kFloat64);
+  auto f = [&](const torch::Tensor& xx, const torch::Tensor& pp) {
+    return (model::spectral_wiener_cube(xx, pp / pp.sum({2, 3}, true), omega, prior) * w).sum();
+  };
+  f(x, p).backward();
+  torch::NoGradGuard ng;
+  // The DC term's weight (10⁴ S) leaves the sum a roundoff of ~1e-10: a
+  // step of 1e-4 keeps the difference quotient's noise below 1e-6 of it.
+  const double h = 1e-4;
+  for (const auto& [t, g, name] : {std::tuple<torch::Tensor, torch::Tensor, const char*>{x, x.grad(), "image"},
+                                   {p, p.grad(), "psf"}}) {
+    for (int64_t i : {int64_t(0), t.numel() / 3, t.numel() - 1}) {
+      torch::Tensor tp = t.detach().clone(), tm = t.detach().clone();
+      tp.view(-1)[i] += h;
+      tm.view(-1)[i] -= h;
+      const bool img = std::string(name) == "image";
+      const double fd = ((img ? f(tp, p) : f(x, tp)) - (img ? f(tm, p) : f(x, tm))).item<double>() / (2 * h);
+      INFO(name << " entry " << i);
+      CHECK(g.view(-1)[i].item<double>() == Approx(fd).epsilon(1e-5).margin(1e-9));
+    }
+  }
+}
+
+TEST_CASE("spectral moments: mean and covariance by hand, lit and scaled; noise variance by hand", "[spectral_wiener][data]") {
+  // Two bands, three pixels (one masked out): reflectances (0.2, 0.4), (0.6, 0.2), masked (9, 9).
+  data::LoadedScene s;
+  s.file = "hand.exr";
+  s.scene.spectral = torch::tensor({0.2f, 0.6f, 9.0f, 0.4f, 0.2f, 9.0f}).view({2, 1, 3});
+  s.scene.depth_m = torch::ones({1, 1, 3});
+  s.scene.mask = torch::tensor({1.0f, 1.0f, 0.0f}).view({1, 1, 3});
+  // Two illuminants (1, 1) and (1, 3); intensity s ~ U[1, 2]: E[s] = 1.5, E[s²] = 7/3.
+  const torch::Tensor E = torch::tensor({1.0, 1.0, 1.0, 3.0}, torch::kFloat64).view({2, 2});
+  const data::SpectralMoments m = data::radiance_moments({s}, E, 1.0, 2.0);
+  CHECK(m.pixels == 2);
+  // Band means of the lit pixels: band 0 0.4, band 1 0.3 · E_k[e₁] = 0.3 · 2 = 0.6; times E[s].
+  CHECK(m.mean[0].item<double>() == Approx(1.5 * 0.4));
+  CHECK(m.mean[1].item<double>() == Approx(1.5 * 0.6));
+  // Second moments: E[x0²] = (0.04 + 0.36)/2 = 0.2; E[x0 x1] = (0.08 + 0.12)/2 · 2 = 0.2; E[x1²] = (0.16 + 0.04)/2 · 5 = 0.5.
+  const double es2 = 7.0 / 3.0;
+  CHECK(m.covariance[0][0].item<double>() == Approx(es2 * 0.2 - 0.36));
+  CHECK(m.covariance[0][1].item<double>() == Approx(es2 * 0.2 - 0.54));
+  CHECK(m.covariance[1][0].item<double>() == Approx(m.covariance[0][1].item<double>()));
+  CHECK(m.covariance[1][1].item<double>() == Approx(es2 * 0.5 - 0.81));
+  CHECK_THROWS_AS(data::radiance_moments({s}, torch::Tensor(), 1.0, 2.0), InputError);  // a reflectance needs light
+  s.scene.mask.zero_();
+  CHECK_THROWS_AS(data::radiance_moments({s}, E, 1.0, 2.0), InputError);  // no valid pixel
+  // σ² = E[σ_read²] + y / photons, σ_read ~ U[0.001, 0.005]: (1 + 5 + 25)/3 · 1e-6; fixed σ; no noise floored.
+  CHECK(model::mean_noise_variance(0.001, 0.005, 17000, 0.34) == Approx(31e-6 / 3 + 0.34 / 17000));
+  CHECK(model::mean_noise_variance(-1, 0.005, 0, 0.34) == Approx(25e-6));
+  CHECK(model::mean_noise_variance(-1, 0, 0, 0.34) == Approx(1e-8));
+}
+
+TEST_CASE("spectral Wiener: the network's residual on it starts at it, trains, reaches the DOE and checkpoints its prior",
+          "[spectral_wiener][train]") {
+  const Config cfg = load_config(test::source_path("configs/tiny.json"),
+                                 {"data.root=\"unused_no_data_is_loaded\"", "model.base_width=4", "model.levels=2",
+                                  "train.batch_size=2", "train.warmup_steps=0", "train.decay=none",
+                                  "data.patch_size_px=16", "train.lr_net=0.003", "model.residual=\"spectral_wiener\""});
+  train::Trainer a(cfg);
+  const int64_t L = int64_t(a.psf().spec().wavelengths_m.size());
+  REQUIRE(a.net()->options().residual_spectral_wiener);
+  a.refresh_preinverse();
+  const torch::Tensor x = torch::rand({1, 3, 16, 16});
+  CHECK_THROWS_WITH(a.net()->spectral_wiener(x), Catch::Contains("prior"));  // never set: refused, not zeros
+  torch::manual_seed(15);
+  const torch::Tensor mu = torch::rand({L}) * 0.3, sig = spd(L, 1e-3).to(torch::kFloat32);
+  a.net()->set_spectral_prior(mu, sig, 1e-5, a.sensor().omega);
+  a.net()->start_at_baselines(1.0);
+  {
+    torch::NoGradGuard ng;
+    a.net()->eval();
+    const model::SpectralPrior prior{mu, sig, 1e-5};
+    const torch::Tensor expect = model::spectral_wiener_cube(x, a.psf_stack(), a.sensor().omega, prior);
+    CHECK((a.net()->forward(x).hs - expect).abs().max().item<double>() < 1e-6);
+    a.net()->train();
+  }
+  torch::manual_seed(5);
+  train::Batch bt;
+  bt.radiance = torch::rand({2, L, 16, 16});
+  bt.depth_m = 0.5 + torch::rand({2, 1, 16, 16});
+  const double first = a.step(bt, 0).loss;
+  REQUIRE(a.doe().parameter().grad().defined());
+  CHECK(a.doe().parameter().grad().abs().max().item<double>() > 0.0);
+  double last = first;
+  for (int k = 1; k < 8; ++k) last = a.step(bt, k).loss;
+  CHECK(last < first);
+  CHECK_FALSE(a.net()->band_psf().requires_grad());
+  const std::string ck = (std::filesystem::temp_directory_path() / "hsd_test_spectral_wiener_ck.pt").string();
+  a.save_checkpoint(ck, 8);
+  train::Trainer c(cfg);
+  c.load_checkpoint(ck);
+  torch::NoGradGuard ng;
+  a.net()->eval(), c.net()->eval();
+  a.refresh_preinverse();
+  CHECK((c.net()->forward(x).hs - a.net()->forward(x).hs).abs().max().item<double>() < 1e-6);
+  std::filesystem::remove(ck);
+}
