@@ -50,14 +50,7 @@ void log_summary(const train::EvalResult& r, const std::string& split) {
                   a.hs_psnr_db - a.baseline_wiener_hs_psnr_db);
     log::info(buf);
   }
-  if (std::isfinite(a.baseline_spectral_wiener_hs_psnr_db)) {
-    std::snprintf(buf, sizeof buf,
-                  "the spectral Wiener baseline (the LMMSE cube under the training split's spectral statistics, no "
-                  "network): HS PSNR %.2f dB, SSIM %.4f; the model is %+.2f dB from it",
-                  a.baseline_spectral_wiener_hs_psnr_db, a.baseline_spectral_wiener_hs_ssim,
-                  a.hs_psnr_db - a.baseline_spectral_wiener_hs_psnr_db);
-    log::info(buf);
-  }
+  if (std::isfinite(a.baseline_spectral_wiener_hs_psnr_db)) log::info(train::spectral_wiener_summary(a));
   if (std::isfinite(a.model_base_hs_psnr_db)) {
     std::snprintf(buf, sizeof buf,
                   "the network's residual base alone (its learned spectral map, no U-Net): HS PSNR %.2f dB, SSIM %.4f; "

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <stdexcept>
 #include <string>
 #include <sys/wait.h>
@@ -45,6 +46,36 @@ inline optics::PsfSpec make_spec(std::vector<double> wavelengths_m, std::vector<
   s.spectral_samples = 1;
   s.mft_rank_tol = 1e-6;
   return s;
+}
+
+// A float64 gradient check of a scalar f(image, psf): autograd's gradient
+// beside the central difference (step h) at three entries of each input (the
+// first, one a third in, the last).
+struct GradientPair {
+  std::string input;  // "image" or "psf"
+  int64_t entry;
+  double autograd, difference;
+};
+inline std::vector<GradientPair> image_psf_gradient_check(
+    const std::function<torch::Tensor(const torch::Tensor&, const torch::Tensor&)>& f, const torch::Tensor& image,
+    const torch::Tensor& psf, double h) {
+  const torch::Tensor x = image.detach().clone().requires_grad_(), p = psf.detach().clone().requires_grad_();
+  f(x, p).backward();
+  torch::NoGradGuard ng;
+  std::vector<GradientPair> out;
+  for (int which = 0; which < 2; ++which) {
+    const torch::Tensor& t = which == 0 ? x : p;
+    const torch::Tensor g = t.grad();
+    for (int64_t i : {int64_t(0), t.numel() / 3, t.numel() - 1}) {
+      torch::Tensor tp = t.detach().clone(), tm = t.detach().clone();
+      tp.view(-1)[i] += h;
+      tm.view(-1)[i] -= h;
+      const double fd = which == 0 ? (f(tp, p) - f(tm, p)).item<double>() / (2 * h)
+                                   : (f(x, tp) - f(x, tm)).item<double>() / (2 * h);
+      out.push_back({which == 0 ? "image" : "psf", i, g.view(-1)[i].item<double>(), fd});
+    }
+  }
+  return out;
 }
 
 // Centroid (x = column, y = row) of a [P, P] image in pixels from the centre.

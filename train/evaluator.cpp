@@ -47,6 +47,16 @@ std::vector<std::array<int64_t, 4>> read_boxes(const std::string& path, std::vec
 
 }  // namespace
 
+std::string spectral_wiener_summary(const SceneMetrics& m) {
+  char buf[300];
+  std::snprintf(buf, sizeof buf,
+                "the spectral Wiener baseline (the LMMSE cube under the training split's spectral statistics, no "
+                "network): HS PSNR %.2f dB, SSIM %.4f; the model is %+.2f dB from it",
+                m.baseline_spectral_wiener_hs_psnr_db, m.baseline_spectral_wiener_hs_ssim,
+                m.hs_psnr_db - m.baseline_spectral_wiener_hs_psnr_db);
+  return buf;
+}
+
 std::string effective_resolution_text(double px) {
   return std::isfinite(px) ? std::to_string(std::lround(px)) + " px"
                            : "more than " + std::to_string(kOracleWindowsPx.back()) + " px";
@@ -330,14 +340,7 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
   md += "\nIn brackets: the baseline on the same pixels (HS: the upsampling cube of the sensor image alone; depth: ";
   md += constant_known ? "the constant " + c10::str(1.0 / baseline_inv_depth) + " m" : std::string("not known");
   md += "). A model that does not beat its baseline has learned nothing from the image.\n";
-  if (std::isfinite(a.baseline_spectral_wiener_hs_psnr_db)) {
-    std::snprintf(buf, sizeof buf,
-                  "\nThe spectral Wiener baseline (the LMMSE cube under the training radiance's spectral statistics, no "
-                  "network), mean over the scenes: HS PSNR %.2f dB, SSIM %.4f; the model is %+.2f dB from it.\n",
-                  a.baseline_spectral_wiener_hs_psnr_db, a.baseline_spectral_wiener_hs_ssim,
-                  a.hs_psnr_db - a.baseline_spectral_wiener_hs_psnr_db);
-    md += buf;
-  }
+  if (std::isfinite(a.baseline_spectral_wiener_hs_psnr_db)) md += "\nMean over the scenes, " + spectral_wiener_summary(a) + ".\n";
   if (std::isfinite(a.model_base_hs_psnr_db)) {
     std::snprintf(buf, sizeof buf,
                   "\nThe network's residual base alone (its learned spectral map on its residual base, no U-Net), mean "

@@ -41,6 +41,8 @@ struct SceneMetrics {
 
 // The resolution oracle's windows [px] in every evaluation.
 inline const std::vector<int64_t> kOracleWindowsPx{3, 5, 9, 15, 31, 63, 127};
+// One sentence on the spectral Wiener baseline of m (its PSNR and SSIM, the model's distance from it).
+std::string spectral_wiener_summary(const SceneMetrics& m);
 // An effective resolution as text: "52 px", or "more than 127 px" when coarser than every window.
 std::string effective_resolution_text(double px);
 

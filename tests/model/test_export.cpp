@@ -16,6 +16,20 @@
 using namespace hsd;
 namespace fs = std::filesystem;
 
+namespace {
+
+// m saved to a temporary folder and loaded back as a reconstructor (model::load_reconstructor).
+torch::jit::Module save_and_reload(torch::jit::Module& m, const std::string& name) {
+  const fs::path dir = fs::temp_directory_path() / name;
+  fs::create_directories(dir);
+  m.save((dir / "reconstructor.pt").string());
+  torch::jit::Module loaded = model::load_reconstructor((dir / "reconstructor.pt").string());
+  fs::remove_all(dir);
+  return loaded;
+}
+
+}  // namespace
+
 TEST_CASE("export: the TorchScript module reproduces the network, saved, reloaded and in Python", "[export]") {
   for (const NormKind norm : {NormKind::batch, NormKind::group, NormKind::none}) {
     INFO("norm " << choice_name(norm));
@@ -132,10 +146,7 @@ TEST_CASE("export: a network with the Wiener pre-inversion exports with its PSFs
   const torch::Tensor x = torch::rand({2, 3, 27, 22});  // 27 + 8 = 35 -> an FFT size of 36: the padding rule is exercised
   const model::NetOutput ref = net->forward(x);
   torch::jit::Module m = model::export_torchscript(net, {{400e-9, 450e-9, 500e-9, 550e-9}, {}, {}});
-  const fs::path dir = fs::temp_directory_path() / "hsd_test_export_preinverse";
-  fs::create_directories(dir);
-  m.save((dir / "reconstructor.pt").string());
-  torch::jit::Module loaded = model::load_reconstructor((dir / "reconstructor.pt").string());
+  torch::jit::Module loaded = save_and_reload(m, "hsd_test_export_preinverse");
   const auto [hs, d] = model::run_reconstructor(loaded, x);
   CHECK((hs - ref.hs).abs().max().item<double>() <= 1e-5 * ref.hs.abs().max().item<double>());
   CHECK((d - ref.depth_m).abs().max().item<double>() <= 1e-5 * ref.depth_m.abs().max().item<double>());
@@ -164,15 +175,11 @@ TEST_CASE("export: a network with the spectral Wiener residual exports with its 
   const torch::Tensor x = torch::rand({2, 3, 27, 22});
   const model::NetOutput ref = net->forward(x);
   torch::jit::Module m = model::export_torchscript(net, {{400e-9, 450e-9, 500e-9, 550e-9}, {}, {}});
-  const fs::path dir = fs::temp_directory_path() / "hsd_test_export_spectral_wiener";
-  fs::create_directories(dir);
-  m.save((dir / "reconstructor.pt").string());
-  torch::jit::Module loaded = model::load_reconstructor((dir / "reconstructor.pt").string());
+  torch::jit::Module loaded = save_and_reload(m, "hsd_test_export_spectral_wiener");
   const auto [hs, d] = model::run_reconstructor(loaded, x);
   CHECK((hs - ref.hs).abs().max().item<double>() <= 1e-5 * ref.hs.abs().max().item<double>());
   CHECK((d - ref.depth_m).abs().max().item<double>() <= 1e-5 * ref.depth_m.abs().max().item<double>());
   model::set_reconstructor_precision(loaded, torch::kBFloat16);
   CHECK(loaded.attr("sw_psf").toTensor().scalar_type() == torch::kFloat32);
   CHECK(loaded.attr("p_sw_covariance").toTensor().scalar_type() == torch::kFloat32);
-  fs::remove_all(dir);
 }
