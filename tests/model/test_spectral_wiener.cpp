@@ -136,7 +136,7 @@ TEST_CASE("spectral Wiener: gradients in the image and the PSFs match central di
   }
 }
 
-TEST_CASE("spectral moments: mean and covariance by hand, lit and scaled; noise variance by hand", "[spectral_wiener][data]") {
+TEST_CASE("spectral moments: mean and covariance by hand, lit and scaled, and the noise variance by hand", "[spectral_wiener][data]") {
   // Two bands, three pixels (one masked out): reflectances (0.2, 0.4), (0.6, 0.2), masked (9, 9).
   data::LoadedScene s;
   s.file = "hand.exr";
