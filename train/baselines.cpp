@@ -10,6 +10,7 @@
 #include "data/spectral_moments.h"
 #include "model/spectral_upsampling.h"
 #include "model/wiener_preinverse.h"
+#include "optics/sensor_image.h"
 
 namespace hsd::train {
 
@@ -44,6 +45,22 @@ model::SpectralPrior training_spectral_prior(const std::vector<data::LoadedScene
 torch::Tensor constant_depth_map(const torch::Tensor& like, double inv_depth_per_m) {
   if (!(inv_depth_per_m > 0)) throw InputError("constant-depth baseline: the inverse depth must be > 0");
   return torch::full_like(like, 1.0 / inv_depth_per_m);
+}
+
+torch::Tensor layer_oracle_depth_map(const torch::Tensor& depth_m, const torch::Tensor& mask,
+                                     const std::vector<double>& layer_depths_m) {
+  if (!depth_m.sizes().equals(mask.sizes()) || depth_m.dim() < 2)
+    throw InputError("layer oracle: the depth map and the mask must have the same shape [.., H, W]");
+  const int64_t H = depth_m.size(-2), W = depth_m.size(-1), N = depth_m.numel() / (H * W);
+  const torch::Tensor d = depth_m.reshape({N, 1, H, W}).to(torch::kFloat64);
+  const torch::Tensor v = (mask.reshape({N, 1, H, W}) > 0.5).to(torch::kFloat64);
+  const torch::Tensor idx = optics::nearest_layer(d.where(v > 0, torch::ones_like(d)), layer_depths_m);  // [N, 1, H, W]
+  const int64_t Z = int64_t(layer_depths_m.size());
+  const torch::Tensor onehot = (idx == torch::arange(Z, idx.options()).view({1, Z, 1, 1})).to(torch::kFloat64) * v;
+  const torch::Tensor count = onehot.sum({2, 3}, true), total = (onehot * d).sum({2, 3}, true);   // [N, Z, 1, 1]
+  const torch::Tensor mean = total / count.clamp_min(1.0);                                            // guarded: empty layers
+  const torch::Tensor oracle = (onehot * mean).sum(1, true);                                          // [N, 1, H, W]
+  return oracle.where(v > 0, d).to(depth_m.scalar_type()).reshape(depth_m.sizes());
 }
 
 double effective_resolution_px(const std::vector<int64_t>& windows, const std::vector<double>& oracle_rmse, double rmse) {

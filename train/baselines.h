@@ -17,7 +17,12 @@
 // Beside them, a reference that uses the truth (not a baseline a model could
 // be, but a ruler for depth): the resolution oracle (data/depth_structure.h);
 // the w at which its RMSE equals a model's is that model's effective depth
-// resolution.
+// resolution. And the layer oracle (layer_oracle_depth_map): the image is
+// rendered with one PSF per configured depth layer (optics/sensor_image.h), so
+// the optical cue says at most which layer a pixel is in; a reader that knows
+// each pixel's layer exactly, and the mean depth of the scene's pixels in that
+// layer, scores the layer oracle. What a network reads beyond it comes from
+// the scene's content, not from the optics.
 #pragma once
 #include <vector>
 
@@ -53,6 +58,14 @@ model::SpectralPrior training_spectral_prior(const std::vector<data::LoadedScene
 
 // The constant-depth map: depth_m [.., H, W] of `like`'s shape, every value 1 / inv_depth [m].
 torch::Tensor constant_depth_map(const torch::Tensor& like, double inv_depth_per_m);
+
+// The layer oracle: depth_m [.., H, W] (metres), mask alike (> 0.5 = valid),
+// layer_depths_m the rendering layers -> [.., H, W] where each valid pixel holds
+// the mean depth [m] (the RMSE-best constant) of the valid pixels of its map
+// (the leading index) in the same nearest layer (optics::nearest_layer);
+// invalid pixels keep their depth.
+torch::Tensor layer_oracle_depth_map(const torch::Tensor& depth_m, const torch::Tensor& mask,
+                                     const std::vector<double>& layer_depths_m);
 
 // The window at which an oracle's RMSE equals `rmse`: windows ascending,
 // oracle_rmse their RMSEs; linear in log w between the bracketing pair.

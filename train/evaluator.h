@@ -37,6 +37,9 @@ struct SceneMetrics {
   // equals the model's (its effective depth resolution, px; +inf: coarser than all).
   std::vector<double> oracle_depth_rmse_m;
   double depth_effective_resolution_px = std::nan("");
+  // The layer oracle (baselines.h, layer_oracle_depth_map) on the same pixels:
+  // what knowing each pixel's rendering layer, and nothing else, allows [m].
+  double layer_oracle_depth_rmse_m = std::nan(""), layer_oracle_depth_mae_m = std::nan("");
 };
 
 // The resolution oracle's windows [px] in every evaluation.

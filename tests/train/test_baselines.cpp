@@ -212,6 +212,14 @@ TEST_CASE("baselines: a network that outputs the baselines scores exactly the ba
   const train::DepthErrors o15 =
       train::depth_errors(data::box_oracle_depth_map(sc0.depth_m, sc0.mask, 15), sc0.depth_m, sc0.mask);
   CHECK(r.scenes[0].oracle_depth_rmse_m[3] == Approx(o15.rmse_m).epsilon(1e-9));
+  // The layer oracle: in metrics.json, mean and per scene, equal to its map's
+  // errors, and never worse than the constant (a per-layer mean beats one constant).
+  REQUIRE(j.contains("reference_layer_oracle_depth_rmse_m"));
+  CHECK(j["scenes"][1].contains("reference_layer_oracle_depth_mae_m"));
+  const train::DepthErrors lo =
+      train::depth_errors(train::layer_oracle_depth_map(sc0.depth_m, sc0.mask, cfg.optics.depths_m), sc0.depth_m, sc0.mask);
+  CHECK(r.scenes[0].layer_oracle_depth_rmse_m == Approx(lo.rmse_m).epsilon(1e-9));
+  for (const auto& m : r.scenes) CHECK(m.layer_oracle_depth_rmse_m <= m.baseline_constant_depth_rmse_m + 1e-9);
 }
 
 TEST_CASE("resolution oracle: box means of inverse depth over valid pixels, by hand, and the effective resolution",
@@ -239,6 +247,35 @@ TEST_CASE("resolution oracle: box means of inverse depth over valid pixels, by h
   CHECK(train::effective_resolution_px(w, r, 0.05) == 3.0);
   CHECK(std::isinf(train::effective_resolution_px(w, r, 0.5)));
   CHECK_THROWS_AS(train::effective_resolution_px({3}, {0.1, 0.2}, 0.1), InputError);
+}
+
+TEST_CASE("layer oracle: each valid pixel at the mean depth of its map's pixels in the same rendering layer, by hand",
+          "[baselines]") {
+  // Layers at 0.5, 1 and 2 m (inverse depth 2, 1, 0.5). Nearest in inverse depth:
+  // 0.45 m (2.22) and 0.6 m (1.67) -> 0.5 m; 0.9 m (1.11) -> 1 m; 1.6 m (0.625)
+  // and 2.5 m (0.4) -> 2 m.
+  const std::vector<double> layers{0.5, 1.0, 2.0};
+  torch::Tensor z = torch::tensor({0.45, 0.6, 0.9, 1.6, 2.5, 1.6}, torch::kFloat64).view({1, 1, 2, 3});
+  torch::Tensor mask = torch::ones_like(z);
+  torch::Tensor o = train::layer_oracle_depth_map(z, mask, layers);
+  CHECK(o[0][0][0][0].item<double>() == Approx(0.525));   // (0.45 + 0.6) / 2
+  CHECK(o[0][0][0][1].item<double>() == Approx(0.525));
+  CHECK(o[0][0][0][2].item<double>() == Approx(0.9));     // alone in its layer: exact
+  CHECK(o[0][0][1][0].item<double>() == Approx(1.9));     // (1.6 + 2.5 + 1.6) / 3
+  CHECK(o[0][0][1][1].item<double>() == Approx(1.9));
+  // An invalid pixel leaves its layer's mean and keeps its own depth.
+  mask[0][0][1][1] = 0;
+  o = train::layer_oracle_depth_map(z, mask, layers);
+  CHECK(o[0][0][1][0].item<double>() == Approx(1.6));
+  CHECK(o[0][0][1][1].item<double>() == Approx(2.5));
+  // Each map of a batch has its own means; one layer per pixel is the truth.
+  const torch::Tensor two = torch::stack({z[0], (z[0] * 0 + 2.0)});  // [2, 1, 2, 3]
+  const torch::Tensor o2 = train::layer_oracle_depth_map(two, torch::ones_like(two), layers);
+  CHECK(o2[0][0][0][2].item<double>() == Approx(0.9));
+  CHECK(torch::allclose(o2[1], two[1]));
+  const torch::Tensor exact = torch::tensor({0.5, 1.0, 2.0}, torch::kFloat64).view({1, 1, 1, 3});
+  CHECK(torch::allclose(train::layer_oracle_depth_map(exact, torch::ones_like(exact), layers), exact));
+  CHECK_THROWS_AS(train::layer_oracle_depth_map(z, mask.squeeze(0), layers), InputError);
 }
 
 TEST_CASE("heads started at the baselines: the untrained network outputs exactly the upsampling cube and the constant depth",
