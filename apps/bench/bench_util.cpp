@@ -6,6 +6,11 @@
 #include <fstream>
 #include <string>
 
+#include <torch/torch.h>
+
+#include "model/spectral_wiener.h"
+#include "optics/sensor.h"
+
 namespace hsd::bench {
 
 train::Batch striped_batch(const Config& cfg, int64_t batch, int64_t patch) {
@@ -17,6 +22,20 @@ train::Batch striped_batch(const Config& cfg, int64_t batch, int64_t patch) {
   for (int64_t z = 0; z < Z; ++z)
     b.depth_m.narrow(3, z * patch / Z, (z + 1) * patch / Z - z * patch / Z).fill_(cfg.optics.depths_m[size_t(z)]);
   return b;
+}
+
+void give_batch_spectral_prior(train::Trainer& t, const train::Batch& b) {
+  if (!t.net()->options().residual_spectral_wiener) return;
+  const int64_t L = b.radiance.size(1);
+  const torch::Tensor x = b.radiance.to(torch::kFloat64).transpose(0, 1).reshape({L, -1});  // [L, pixels]
+  const torch::Tensor mean = x.mean(1);
+  const torch::Tensor centred = x - mean.unsqueeze(1);
+  const torch::Tensor cov = torch::matmul(centred, centred.t()) / double(std::max<int64_t>(1, x.size(1) - 1));
+  const optics::SensorModel& s = t.sensor();
+  const torch::Tensor omega = s.omega.cpu().to(torch::kFloat64);
+  const double y_mean = torch::matmul(omega, mean).mean().item<double>();
+  const double noise_var = model::mean_noise_variance(s.noise.std_min, s.noise.std_max, s.noise.photons_at_saturation, y_mean);
+  t.net()->set_spectral_prior(mean.to(torch::kFloat32), cov.to(torch::kFloat32), noise_var, s.omega.to(torch::kFloat32));
 }
 
 double median(std::vector<double> v) {

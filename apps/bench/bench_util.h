@@ -13,6 +13,14 @@ namespace hsd::bench {
 // radiance (seeded by the config), depth in vertical stripes over every layer.
 train::Batch striped_batch(const Config& cfg, int64_t batch, int64_t patch);
 
+// A trainer built without data (the benchmarks') has no spectral prior; a
+// network whose cube is a residual on the spectral Wiener cube
+// (model.residual = "spectral_wiener") needs one before its first step. Sets
+// the radiance moments of batch b [B, L, H, W] and the sensor's mean noise
+// variance as that prior; does nothing for other networks. Timing only: the
+// prior's values do not change the work a step does.
+void give_batch_spectral_prior(train::Trainer& t, const train::Batch& b);
+
 // The median of v (non-empty), and the wall seconds one call of f takes.
 double median(std::vector<double> v);
 double seconds(const std::function<void()>& f);
