@@ -57,7 +57,7 @@ int run_child(Config cfg, const AppArgs& args, int64_t batch, int64_t patch, int
   cfg.train.batch_size = mode == "solo" ? batch / ranks : batch;
   train::Trainer t(cfg, group);
   const train::Batch b = slice(striped_batch(cfg, batch, patch), rank * (batch / ranks), batch / ranks);
-  give_batch_spectral_prior(t, b);
+  give_batch_spectral_prior(t, cfg, b);
   int64_t k = 0;
   t.step(b, k++);  // warm-up
   const double comm0 = group ? group->seconds_communicating() : 0.0;
@@ -233,7 +233,7 @@ int bench_dist(Config cfg, const AppArgs& args, BenchOutput& out) {
     log::info("one process, " + std::to_string(all_threads) + " threads ...");
     train::Trainer t(cfg);
     const train::Batch b = striped_batch(cfg, batch, patch);
-    give_batch_spectral_prior(t, b);
+    give_batch_spectral_prior(t, cfg, b);
     int64_t k = 0;
     one_s = median_seconds([&] { t.step(b, k++); }, repeats);
   }

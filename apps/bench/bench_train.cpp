@@ -96,7 +96,7 @@ int bench_train(Config cfg, const AppArgs& args, BenchOutput& out) {
   std::vector<Config> cfgs{cfg, cfg};
   std::vector<std::unique_ptr<train::Trainer>> trainers;
   trainers.push_back(std::make_unique<train::Trainer>(cfgs[0]));
-  give_batch_spectral_prior(*trainers[0], b);
+  give_batch_spectral_prior(*trainers[0], cfgs[0], b);
   cfgs[1].train.precision = trainers[0]->precision().dtype == torch::kBFloat16 ? TrainPrecision::float32 : TrainPrecision::bfloat16;
   std::vector<Row> rows(2);
   std::vector<int64_t> k(2, 0);
@@ -104,7 +104,7 @@ int bench_train(Config cfg, const AppArgs& args, BenchOutput& out) {
   trainers[0]->step(b, k[0]++);  // warm-up
   rows[0].peak_mib = peak_rss_during([&] { trainers[0]->step(b, k[0]++); });
   trainers.push_back(std::make_unique<train::Trainer>(cfgs[1]));
-  give_batch_spectral_prior(*trainers[1], b);
+  give_batch_spectral_prior(*trainers[1], cfgs[1], b);
   trainers[1]->step(b, k[1]++);
   std::vector<std::vector<double>> t_step(2), t_net(2);
   const torch::Tensor x = torch::rand({batch, 3, patch, patch});

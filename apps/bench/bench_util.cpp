@@ -8,8 +8,7 @@
 
 #include <torch/torch.h>
 
-#include "model/spectral_wiener.h"
-#include "optics/sensor.h"
+#include "train/baselines.h"
 
 namespace hsd::bench {
 
@@ -24,18 +23,18 @@ train::Batch striped_batch(const Config& cfg, int64_t batch, int64_t patch) {
   return b;
 }
 
-void give_batch_spectral_prior(train::Trainer& t, const train::Batch& b) {
+void give_batch_spectral_prior(train::Trainer& t, const Config& cfg, const train::Batch& b) {
   if (!t.net()->options().residual_spectral_wiener) return;
-  const int64_t L = b.radiance.size(1);
-  const torch::Tensor x = b.radiance.to(torch::kFloat64).transpose(0, 1).reshape({L, -1});  // [L, pixels]
-  const torch::Tensor mean = x.mean(1);
-  const torch::Tensor centred = x - mean.unsqueeze(1);
-  const torch::Tensor cov = torch::matmul(centred, centred.t()) / double(std::max<int64_t>(1, x.size(1) - 1));
-  const optics::SensorModel& s = t.sensor();
-  const torch::Tensor omega = s.omega.cpu().to(torch::kFloat64);
-  const double y_mean = torch::matmul(omega, mean).mean().item<double>();
-  const double noise_var = model::mean_noise_variance(s.noise.std_min, s.noise.std_max, s.noise.photons_at_saturation, y_mean);
-  t.net()->set_spectral_prior(mean.to(torch::kFloat32), cov.to(torch::kFloat32), noise_var, s.omega.to(torch::kFloat32));
+  std::vector<data::LoadedScene> scenes(size_t(b.radiance.size(0)));  // the batch as radiance scenes
+  for (size_t i = 0; i < scenes.size(); ++i) {
+    data::SpectralScene& sc = scenes[i].scene;
+    sc.kind = data::SpectralKind::Radiance;
+    sc.spectral = b.radiance[int64_t(i)];
+    sc.depth_m = b.depth_m[int64_t(i)];
+    sc.mask = torch::ones_like(sc.depth_m);
+  }
+  const model::SpectralPrior p = train::training_spectral_prior(scenes, cfg, t.sensor());
+  t.net()->set_spectral_prior(p.mean, p.covariance, p.noise_var, t.sensor().omega.to(torch::kFloat32));
 }
 
 double median(std::vector<double> v) {

@@ -17,9 +17,10 @@ train::Batch striped_batch(const Config& cfg, int64_t batch, int64_t patch);
 // network whose cube is a residual on the spectral Wiener cube
 // (model.residual = "spectral_wiener") needs one before its first step. Sets
 // the radiance moments of batch b [B, L, H, W] and the sensor's mean noise
-// variance as that prior; does nothing for other networks. Timing only: the
-// prior's values do not change the work a step does.
-void give_batch_spectral_prior(train::Trainer& t, const train::Batch& b);
+// variance as that prior (train::training_spectral_prior, the batch as
+// radiance scenes); does nothing for other networks. Timing only: the prior's
+// values do not change the work a step does.
+void give_batch_spectral_prior(train::Trainer& t, const Config& cfg, const train::Batch& b);
 
 // The median of v (non-empty), and the wall seconds one call of f takes.
 double median(std::vector<double> v);
