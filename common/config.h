@@ -182,6 +182,11 @@ struct TrainConfig {
   LrDecay decay = LrDecay::cosine;  // "cosine" (to min_lr_ratio at the last step) | "none"
   double min_lr_ratio = 0.05;
   double clip_grad_norm = 1.0;      // the network's gradient norm (not the DOE's); 0 = off
+  // Exponential moving average of the trained weights (network and DOE), the
+  // model that validation, checkpoints and evaluation use (Polyak averaging):
+  // after step k, w̄ ← d_k w̄ + (1 − d_k) w with d_k = min(ema_decay, (1+k)/(10+k)).
+  // 0 = off (the model is the last step's weights).
+  double ema_decay = 0.0;
   bool freeze_doe = false;          // fixed-DOE ablations
   // A training checkpoint whose network weights start this run (fine-tuning,
   // e.g. on measured PSFs); "" = the network's own initialisation. Only the

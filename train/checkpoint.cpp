@@ -56,8 +56,9 @@ const char* kOtherConfig = "a checkpoint of another config?";
 }  // namespace
 
 void write_checkpoint(const std::string& path, const optics::Doe& doe, const model::HsdNet& net, const torch::optim::Adam& adam,
-                      double baseline_inv_depth, int64_t next_step) {
+                      double baseline_inv_depth, int64_t next_step, const NamedTensors& extra) {
   TensorDict d;
+  for (const auto& [name, t] : extra) d[name] = t.detach().cpu();
   d["step"] = torch::tensor(next_step, torch::kInt64);
   d["doe.raw"] = doe.parameter().detach().cpu();
   d["height_map_m"] = doe.height().detach().to(torch::kFloat32).cpu();
@@ -106,6 +107,14 @@ int64_t read_checkpoint(const std::string& path, TrainingState& s) {
     if (!(baseline > 0)) input_error(path, "baseline.inv_depth_per_m must be > 0");
   }
   const int64_t next = d.count("step");
+  size_t live_found = 0;
+  for (const auto& [name, dst] : s.live) live_found += d.d.count(name);
+  if (live_found != 0 && live_found != s.live.size())
+    input_error(path, "holds " + std::to_string(live_found) + " of the " + std::to_string(s.live.size()) +
+                          " live.* entries of weight averaging (train.ema_decay): damaged?");
+  if (live_found != 0)
+    for (const auto& [name, dst] : s.live) copies.emplace_back(dst, d.entry(name, dst.sizes(), kOtherConfig));
+  s.live_read = live_found != 0;
   // All checked: replace the state.
   apply(copies);
   auto& state = s.adam.state();

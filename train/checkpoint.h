@@ -3,12 +3,17 @@
 // serves as a height-map file), the network ("net.<name>": parameters and
 // buffers), Adam's moments per parameter ("adam.<group>.<index>.exp_avg",
 // "exp_avg_sq", "step") and the constant-depth baseline's inverse depth
-// ("baseline.inv_depth_per_m", when known). Reading checks every entry
+// ("baseline.inv_depth_per_m", when known). With weight averaging
+// (train.ema_decay) the DOE and network entries are the averaged model, and
+// the optimiser's current weights are "live.<name>" (name: "doe.raw" or
+// "net.<parameter>"), so a resumed run continues exactly. Reading checks every entry
 // (present, shape, finite) before anything is replaced: a damaged or foreign
 // file is an InputError naming it and the entry, never a crash or a NaN model.
 #pragma once
 #include <cstdint>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include <torch/torch.h>
 
@@ -23,11 +28,18 @@ struct TrainingState {
   model::HsdNet& net;
   torch::optim::Adam& adam;
   double& baseline_inv_depth;  // 1/m; NaN when unknown
+  // Weight averaging: (name, destination) of the optimiser's current weights;
+  // read when the file has them (all, or it is an InputError), live_read says so.
+  std::vector<std::pair<std::string, torch::Tensor>> live = {};
+  bool live_read = false;
 };
+
+// Extra entries written beside the model: (name, tensor), e.g. "live.net.<parameter>".
+using NamedTensors = std::vector<std::pair<std::string, torch::Tensor>>;
 
 // Writes the state and next_step to path, atomically.
 void write_checkpoint(const std::string& path, const optics::Doe& doe, const model::HsdNet& net, const torch::optim::Adam& adam,
-                      double baseline_inv_depth, int64_t next_step);
+                      double baseline_inv_depth, int64_t next_step, const NamedTensors& extra = {});
 // Replaces the state by the file's (all entries checked first); returns its next step.
 int64_t read_checkpoint(const std::string& path, TrainingState& s);
 // The network's parameters and buffers alone (train.init_checkpoint): InputError

@@ -177,6 +177,54 @@ std::vector<torch::Tensor> Trainer::trained_parameters() const {
   return p;
 }
 
+std::vector<std::string> Trainer::trained_names() const {
+  std::vector<std::string> n;
+  for (const auto& p : net_->named_parameters()) n.push_back("net." + p.key());
+  if (doe_trained_) n.push_back("doe.raw");
+  return n;
+}
+
+void Trainer::reset_average() {
+  average_.clear();
+  average_in_use_ = false;
+  if (cfg_.train.ema_decay <= 0.0) return;
+  torch::NoGradGuard no_grad;
+  for (const auto& p : trained_parameters()) average_.push_back(p.detach().clone());
+}
+
+void Trainer::swap_average() {
+  torch::NoGradGuard no_grad;
+  const std::vector<torch::Tensor> params = trained_parameters();
+  for (size_t i = 0; i < params.size(); ++i) {
+    const torch::Tensor kept = params[i].detach().clone();
+    params[i].copy_(average_[i]);
+    average_[i].copy_(kept);
+  }
+  average_in_use_ = !average_in_use_;
+}
+
+void Trainer::use_average() {
+  if (cfg_.train.ema_decay <= 0.0) return;
+  if (average_.empty()) reset_average();
+  if (!average_in_use_) swap_average();
+}
+
+void Trainer::use_optimiser_weights() {
+  if (cfg_.train.ema_decay <= 0.0) return;
+  if (average_.empty()) reset_average();
+  if (average_in_use_) swap_average();
+}
+
+void Trainer::update_average(int64_t step) {
+  if (cfg_.train.ema_decay <= 0.0) return;
+  // The decay ramps up from 0.1 (Tensorflow's num_updates rule), so early
+  // steps, far from where training ends, leave the average soon.
+  const double d = std::min(cfg_.train.ema_decay, (1.0 + double(step)) / (10.0 + double(step)));
+  torch::NoGradGuard no_grad;
+  const std::vector<torch::Tensor> params = trained_parameters();
+  for (size_t i = 0; i < params.size(); ++i) average_[i].lerp_(params[i].detach(), 1.0 - d);
+}
+
 std::vector<torch::Tensor> Trainer::replicated_state(bool with_buffers) const {
   std::vector<torch::Tensor> t = net_->parameters();
   if (with_buffers)
@@ -190,6 +238,7 @@ std::vector<torch::Tensor> Trainer::replicated_state(bool with_buffers) const {
       t.push_back(st.exp_avg());
       t.push_back(st.exp_avg_sq());
     }
+  for (const auto& a : average_) t.push_back(a);
   return t;
 }
 
@@ -236,6 +285,7 @@ void Trainer::attach_data() {
   baseline_inv_depth_ = median_inverse_depth(train_scenes_);
   // A checkpoint, if resumed, replaces the heads; train.init_checkpoint's are kept.
   if (cfg_.model.head_init == HeadInit::baselines && !network_started_) net_->start_at_baselines(baseline_inv_depth_);
+  reset_average();  // from the weights training starts with (a resumed run then reads its own)
   const data::Manifest m = data::read_manifest(root);
   bank_ = std::make_unique<data::IlluminantBank>(cfg_.data.illuminants, bands, bw);
   if (net_->options().residual_spectral_wiener) {  // the prior: the training radiance's moments, the sensor's noise
@@ -376,6 +426,7 @@ void Trainer::apply_gradients(int64_t step) {
 }
 
 StepStats Trainer::step(const Batch& batch, int64_t step) {
+  use_optimiser_weights();
   StepStats st = set_learning_rates(step);
   net_->train();
   // Profiling (set_profile) times each phase; the backward pass is then run in
@@ -416,6 +467,7 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
     timer.lap(&StepProfile::psf_backward);
   }
   apply_gradients(step);
+  update_average(step);
   // The pre-inversion's graph is spent; refresh_preinverse() for the new DOE.
   if (si.rgb_psf.defined()) net_->set_preinverse_psf(si.rgb_psf.detach());
   if (si.band_psf.defined()) net_->set_band_psf(si.band_psf.detach());
@@ -427,6 +479,7 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
 
 ValStats Trainer::validate() {
   if (!val_.radiance.defined()) throw InputError("trainer: attach_data() first");
+  use_average();
   torch::NoGradGuard no_grad;
   // Per-rank batch norm: every rank validates with rank 0's running statistics.
   if (!cfg_.distributed.sync_batch_norm) ranks_->broadcast_(net_->buffers(), "rank 0's batch-norm statistics");
@@ -488,13 +541,28 @@ ValStats Trainer::validate() {
   return v;
 }
 
-void Trainer::save_checkpoint(const std::string& path, int64_t next_step) const {
-  write_checkpoint(path, doe_, net_, *opt_, baseline_inv_depth_, next_step);
+void Trainer::save_checkpoint(const std::string& path, int64_t next_step) {
+  use_average();  // the model; the optimiser's weights beside it
+  NamedTensors live;
+  const std::vector<std::string> names = trained_names();
+  for (size_t i = 0; i < average_.size(); ++i) live.emplace_back("live." + names[i], average_[i]);
+  write_checkpoint(path, doe_, net_, *opt_, baseline_inv_depth_, next_step, live);
 }
 
 int64_t Trainer::load_checkpoint(const std::string& path) {
   TrainingState state{doe_, net_, *opt_, baseline_inv_depth_};
+  std::vector<torch::Tensor> live;  // the optimiser's weights, when the file has them
+  if (cfg_.train.ema_decay > 0.0) {
+    const std::vector<std::string> names = trained_names();
+    for (const auto& p : trained_parameters()) live.push_back(torch::empty_like(p.detach()));
+    for (size_t i = 0; i < live.size(); ++i) state.live.emplace_back("live." + names[i], live[i]);
+  }
   const int64_t next = read_checkpoint(path, state);
+  if (cfg_.train.ema_decay > 0.0) {  // the parameters hold the file's model; its optimiser's weights go aside
+    reset_average();                  // a file without them (averaging off when written): both are its model
+    if (state.live_read) average_ = live;
+    average_in_use_ = true;
+  }
   // Every rank read a checkpoint of the same step, then all take rank 0's values.
   const auto all = ranks_->gather(double(next), "the resumed step");
   for (int64_t r = 0; r < world_; ++r)
@@ -508,6 +576,7 @@ int64_t Trainer::load_checkpoint(const std::string& path) {
 }
 
 void Trainer::write_val_pictures(const std::string& dir, int64_t step) {
+  use_average();
   torch::NoGradGuard no_grad;
   net_->eval();
   refresh_preinverse();
@@ -537,6 +606,7 @@ void Trainer::start_from(const std::string& path) {
   if (!std::filesystem::is_regular_file(path)) input_error(path, "no such checkpoint file (train.init_checkpoint)");
   read_network_weights(path, net_);
   network_started_ = true;
+  reset_average();
   log::info("network weights from " + path + " (train.init_checkpoint); DOE, optimizer and step start afresh");
 }
 
@@ -643,6 +713,8 @@ void Trainer::run(const std::string& out_dir, bool resume) {
     }
   }
   if (progress) progress->finish();
+  use_average();  // the trainer holds the model, as its checkpoint does
+  refresh_preinverse();
   ranks_->barrier("at the end of training");  // every rank leaves once rank 0's last checkpoint is written
   if (start >= T.steps) log::info("nothing to do: the checkpoint is at step " + std::to_string(start));
 }

@@ -84,9 +84,13 @@ class Trainer {
 
   // Checkpoint: a torch pickle dict (network, DOE, Adam state, next step; also
   // height_map_m and doe_pitch_m so it serves as a height-map file). Atomic.
-  void save_checkpoint(const std::string& path, int64_t next_step) const;
+  // With weight averaging (train.ema_decay) the file's model is the average
+  // and the optimiser's weights are kept beside it (train/checkpoint.h).
+  void save_checkpoint(const std::string& path, int64_t next_step);
   // Returns the next step; InputError naming the file for a mismatch. With a
   // group every rank reads it (same step required), then takes rank 0's values.
+  // Afterwards the network and DOE hold the file's model (the average, with
+  // weight averaging); training steps continue from its optimiser's weights.
   int64_t load_checkpoint(const std::string& path);
   // train.init_checkpoint: the network's weights (parameters and buffers) from
   // a training checkpoint of a config with the same network; nothing else
@@ -153,6 +157,19 @@ class Trainer {
   // The centre patch_size_px × patch_size_px of [B, C, S', S'] (itself when S' = S).
   torch::Tensor centre(const torch::Tensor& t) const;
   std::vector<torch::Tensor> trained_parameters() const;  // what Adam updates
+  std::vector<std::string> trained_names() const;         // theirs in checkpoints: "net.<name>", "doe.raw"
+  // Weight averaging (train.ema_decay > 0): the trained parameters and
+  // average_ hold the optimiser's weights and their moving average, one in
+  // each; use_average() puts the average in the parameters (validation,
+  // pictures, checkpoints, evaluation), use_optimiser_weights() the other
+  // (training steps). Both are no-ops when averaging is off. reset_average()
+  // starts the average afresh from the parameters (after they are set from
+  // outside: heads, init_checkpoint).
+  void use_average();
+  void use_optimiser_weights();
+  void reset_average();
+  void update_average(int64_t step);
+  void swap_average();
   std::vector<torch::Tensor> replicated_state(bool with_buffers = true) const;  // parameters, buffers, Adam moments
   // Every checkpoint: the ranks' parameters must agree (they can only drift by
   // rounding on unlike hosts); a warning and rank 0's values otherwise.
@@ -163,6 +180,8 @@ class Trainer {
   optics::PsfProvider fixed_psf_;   // optics.psf_source = "all_in_focus": the control's PSFs
   bool doe_trained_ = true;         // false when frozen (train.freeze_doe) or unused (a fixed PSF source)
   double baseline_inv_depth_ = std::nan("");
+  std::vector<torch::Tensor> average_;  // weight averaging's other copy of trained_parameters() (empty: off or not started)
+  bool average_in_use_ = false;         // the parameters hold the average, average_ the optimiser's weights
   torch::Tensor upsampling_w_;  // [L, 3] the paper's fixed spectral map: the baselines' (not the network's, when learned)
   bool network_started_ = false;    // start_from() loaded the network: attach_data keeps its heads
   TrainingPrecision precision_;

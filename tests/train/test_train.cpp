@@ -8,6 +8,7 @@
 
 #include "common/atomic_file.h"
 #include "common/error.h"
+#include "common/tensor_io.h"
 #include "helpers.h"
 #include "model/spectral_upsampling.h"
 #include "model/unet.h"
@@ -145,6 +146,62 @@ TEST_CASE("train: checkpoint then resume equals an uninterrupted run", "[train]"
   // A checkpoint of another config is refused naming the file.
   train::Trainer other(tiny_training((dir / "data").string(), {"model.base_width=6"}));
   CHECK_THROWS_WITH(other.load_checkpoint((dir / "ck.pt").string()), Catch::Contains("ck.pt"));
+}
+
+TEST_CASE("train: weight averaging (train.ema_decay) follows its formula, is the checkpoint's model, and resumes exactly", "[train]") {
+  const fs::path dir = fs::temp_directory_path() / "hsd_test_train_ema";
+  fs::remove_all(dir);
+  const Config cfg = tiny_training((dir / "data").string(), {"train.steps=4", "train.ema_decay=0.5", "train.lr_net=0.003"});
+  train::Trainer a(cfg);
+  a.attach_data();
+  // The average by hand: w̄ starts at the initial weights, then after step k
+  // w̄ ← d w̄ + (1 − d) w with d = min(0.5, (1+k)/(10+k)) = 0.1, 0.18, 0.25, 0.31.
+  torch::Tensor avg = a.doe().parameter().detach().clone().to(torch::kFloat64);
+  torch::Tensor live;
+  for (int64_t k = 0; k < 4; ++k) {
+    a.step(a.train_batch(k), k);
+    live = a.doe().parameter().detach().clone();  // a step leaves the optimiser's weights in place
+    const double d = std::min(0.5, (1.0 + double(k)) / (10.0 + double(k)));
+    avg = d * avg + (1.0 - d) * live.to(torch::kFloat64);
+  }
+  const double moved = (live.to(torch::kFloat64) - avg).abs().max().item<double>();
+  REQUIRE(moved > 0.0);  // the average lags the weights, so the check below can fail
+  a.save_checkpoint((dir / "a.pt").string(), 4);
+  // After the checkpoint the trainer holds the average: the model.
+  CHECK((a.doe().parameter().detach().to(torch::kFloat64) - avg).abs().max().item<double>() < 1e-6 * moved + 1e-12);
+  // The file: the model is the average, the optimiser's weights are beside it.
+  const TensorDict d = load_tensor_dict((dir / "a.pt").string());
+  CHECK(d.at("doe.raw").equal(a.doe().parameter().detach()));
+  CHECK(d.at("live.doe.raw").equal(live));
+  CHECK(d.count("live.net." + a.net()->named_parameters().keys().front()) == 1);
+  // A config without averaging reads the file's model (what hsd_eval and hsd_export use).
+  train::Trainer plain(tiny_training((dir / "data").string()));
+  plain.load_checkpoint((dir / "a.pt").string());
+  CHECK(plain.doe().parameter().equal(a.doe().parameter()));
+  // Resumed at step 2, the run ends where the uninterrupted one does: weights and average.
+  train::Trainer b(cfg);
+  b.attach_data();
+  for (int64_t k = 0; k < 2; ++k) b.step(b.train_batch(k), k);
+  b.validate();  // validation swaps the average in and out: it must not disturb training
+  b.save_checkpoint((dir / "b.pt").string(), 2);
+  train::Trainer c(cfg);
+  c.attach_data();
+  REQUIRE(c.load_checkpoint((dir / "b.pt").string()) == 2);
+  for (int64_t k = 2; k < 4; ++k) c.step(c.train_batch(k), k);
+  CHECK(c.doe().parameter().equal(live));
+  c.save_checkpoint((dir / "c.pt").string(), 4);
+  CHECK(c.doe().parameter().equal(a.doe().parameter()));
+  auto pa = a.net()->named_parameters(), pc = c.net()->named_parameters();
+  for (const auto& p : pa) {
+    INFO(p.key());
+    CHECK(p.value().equal(pc[p.key()]));
+  }
+  // A file with only some of the optimiser's weights is refused, naming it.
+  TensorDict broken = d;
+  broken.erase("live.doe.raw");
+  save_tensor_dict((dir / "broken.pt").string(), broken);
+  train::Trainer e(cfg);
+  CHECK_THROWS_WITH(e.load_checkpoint((dir / "broken.pt").string()), Catch::Contains("broken.pt") && Catch::Contains("live"));
 }
 
 TEST_CASE("train: an exploding learning rate is refused or stopped by the NaN guard, naming the step", "[train][stiff]") {
