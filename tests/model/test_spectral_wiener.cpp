@@ -2,8 +2,9 @@
 // (data/spectral_moments.h): closed forms (an invertible camera returns Ω⁻¹ y;
 // a flat image returns the prior's LMMSE spectral map; identical layers are
 // one layer), recovery of a blurred band through another band's channel,
-// a float64 gradient check, the moments by hand, the noise variance by hand,
-// and the network's residual on it (training, checkpoint).
+// agreement with the estimator solved frequency by frequency, a float64
+// gradient check, the moments by hand, the noise variance by hand, and the
+// network's residual on it (training, checkpoint).
 #include <catch2/catch.hpp>
 
 #include <torch/torch.h>
@@ -11,6 +12,7 @@
 #include <filesystem>
 
 #include "common/error.h"
+#include "common/fft_size.h"
 #include "data/spectral_moments.h"
 #include "helpers.h"
 #include "model/spectral_wiener.h"
@@ -34,7 +36,59 @@ torch::Tensor spd(int64_t L, double scale) {
   return scale * (torch::matmul(a, a.t()) + 0.1 * torch::eye(L, torch::kFloat64));
 }
 
+// The estimator of model/spectral_wiener.h written out frequency by
+// frequency, independently of its factored products: H_z = Ω diag(K_z(f))
+// built explicitly, E = E_z[H_z Σ H_zᴴ] and H̄ = E_z[H_z] averaged, and
+// W(f) = S Σ H̄ᴴ (S E + σ² I)⁻¹ by a LAPACK solve; float64 throughout.
+torch::Tensor reference_cube(const torch::Tensor& image, const torch::Tensor& psf, const torch::Tensor& omega,
+                             const model::SpectralPrior& prior) {
+  const int64_t L = psf.size(0), P = psf.size(2), r = P / 2;
+  const int64_t B = image.size(0), H = image.size(2), W = image.size(3);
+  const int64_t nh = fast_fft_size(H + 2 * r), nw = fast_fft_size(W + 2 * r);
+  const auto cd = torch::kComplexDouble;
+  torch::Tensor k = F::pad(psf, F::PadFuncOptions({0, nw - P, 0, nh - P}));
+  k = torch::roll(k, {-r, -r}, {2, 3});
+  const torch::Tensor Kf = torch::fft::rfft2(k).permute({2, 3, 1, 0});           // [nh, nf, K, L]
+  const torch::Tensor Hz = omega.to(cd) * Kf.unsqueeze(-2);                      // [nh, nf, K, 3, L]
+  const torch::Tensor Sig = prior.covariance.to(cd);
+  const torch::Tensor E = torch::matmul(torch::matmul(Hz, Sig), Hz.conj().transpose(-1, -2)).mean(2);  // [nh, nf, 3, 3]
+  const torch::Tensor Hbar = Hz.mean(2);                                                               // [nh, nf, 3, L]
+  const torch::Tensor fy = torch::fft::fftfreq(nh, torch::kFloat64).view({-1, 1});
+  const torch::Tensor fx = torch::fft::rfftfreq(nw, torch::kFloat64).view({1, -1});
+  torch::Tensor S = torch::pow(torch::sqrt(fy.square() + fx.square()) + 1.0 / double(std::max(nh, nw)), -2.0);
+  S = S / S.flatten().slice(0, 1).mean();
+  S.index_put_({0, 0}, S.index({0, 0}) * 1e4);
+  const torch::Tensor Sc = S.to(cd).unsqueeze(-1).unsqueeze(-1);
+  const torch::Tensor M = Sc * E + prior.noise_var * torch::eye(3, cd);
+  const torch::Tensor rhs = Sc * torch::matmul(Sig, Hbar.conj().transpose(-1, -2));  // S Σ H̄ᴴ [nh, nf, L, 3]
+  // W M = rhs  <=>  Mᴴ Wᴴ = rhsᴴ
+  const torch::Tensor Wf = torch::linalg_solve(M.conj().transpose(-1, -2), rhs.conj().transpose(-1, -2)).conj().transpose(-1, -2);
+  torch::Tensor y = image - torch::matmul(omega, prior.mean).view({1, 3, 1, 1});
+  y = F::pad(y, F::PadFuncOptions({r, nw - W - r, r, nh - H - r}).mode(torch::kReplicate));
+  const torch::Tensor Y = torch::fft::rfft2(y).permute({2, 3, 0, 1}).unsqueeze(-1);  // [nh, nf, B, 3, 1]
+  const torch::Tensor X = torch::matmul(Wf.unsqueeze(2), Y).squeeze(-1).permute({2, 3, 0, 1});  // [B, L, nh, nf]
+  const torch::Tensor x = torch::fft::irfft2(X, c10::IntArrayRef{nh, nw});
+  return x.narrow(2, r, H).narrow(3, r, W) + prior.mean.view({1, L, 1, 1});
+}
+
 }  // namespace
+
+TEST_CASE("spectral Wiener: equals the LMMSE estimator solved frequency by frequency", "[spectral_wiener]") {
+  torch::manual_seed(21);
+  const int64_t L = 5, K = 3;
+  const torch::Tensor x = torch::rand({2, 3, 10, 13}, torch::kFloat64);
+  torch::Tensor p = torch::rand({L, K, 7, 7}, torch::kFloat64) + 0.05;
+  p = p / p.sum({2, 3}, true);
+  const torch::Tensor omega = torch::rand({3, L}, torch::kFloat64);
+  const model::SpectralPrior prior{torch::rand({L}, torch::kFloat64), spd(L, 0.01), 1e-4};
+  const torch::Tensor got = model::spectral_wiener_cube(x, p, omega, prior);
+  const torch::Tensor want = reference_cube(x, p, omega, prior);
+  REQUIRE(got.sizes() == want.sizes());
+  CHECK((got - want).abs().max().item<double>() < 1e-10 * want.abs().max().item<double>());
+  // float32 images are filtered in float32 with the float64 filter
+  const torch::Tensor got32 = model::spectral_wiener_cube(x.to(torch::kFloat32), p, omega, prior);
+  CHECK((got32.to(torch::kFloat64) - want).abs().max().item<double>() < 1e-5 * want.abs().max().item<double>());
+}
 
 TEST_CASE("spectral Wiener: an invertible camera without blur returns omega^-1 y", "[spectral_wiener]") {
   torch::manual_seed(11);
