@@ -187,6 +187,12 @@ struct TrainConfig {
   // after step k, w̄ ← d_k w̄ + (1 − d_k) w with d_k = min(ema_decay, (1+k)/(10+k)).
   // 0 = off (the model is the last step's weights).
   double ema_decay = 0.0;
+  // model.residual = "spectral_wiener": whether the DOE learns through the
+  // filter of the cube's residual base (its gradient into the band PSFs);
+  // false: the filter is the current DOE's, without that gradient, and the
+  // DOE learns through the sensor image alone. That gradient is ~28 % of the
+  // quick config's step (docs/benchmarks.md).
+  bool spectral_wiener_doe_gradient = true;
   bool freeze_doe = false;          // fixed-DOE ablations
   // A training checkpoint whose network weights start this run (fine-tuning,
   // e.g. on measured PSFs); "" = the network's own initialisation. Only the

@@ -393,7 +393,8 @@ Trainer::StepImage Trainer::render_step(const Batch& batch, int64_t step, optics
     const torch::Tensor all = every_psf(h);
     const torch::Tensor known = h.is_same(design) ? all : every_psf(design);
     if (net_->options().preinverse_layers > 0) out.rgb_psf = model::camera_rgb_psfs(known, sensor_.omega);
-    if (net_->options().residual_spectral_wiener) out.band_psf = known;
+    if (net_->options().residual_spectral_wiener)
+      out.band_psf = cfg_.train.spectral_wiener_doe_gradient ? known : known.detach();
     provider = optics::fixed_psf_provider(all);
   }
   out.image = optics::simulate_sensor(*psf_, sensor_, h, batch.radiance, batch.depth_m, gens, optics::LeaveOut(), provider);

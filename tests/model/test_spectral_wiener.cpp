@@ -264,3 +264,39 @@ TEST_CASE("spectral Wiener: the network's residual on it starts at it, trains, r
   CHECK((c.net()->forward(x).hs - a.net()->forward(x).hs).abs().max().item<double>() < 1e-6);
   std::filesystem::remove(ck);
 }
+
+TEST_CASE("spectral Wiener: train.spectral_wiener_doe_gradient = false leaves the forward as it is and cuts only the filter's gradient into the DOE",
+          "[spectral_wiener][train]") {
+  auto trainer_cfg = [](bool through_filter) {
+    return load_config(test::source_path("configs/tiny.json"),
+                       {"data.root=\"unused_no_data_is_loaded\"", "model.base_width=4", "model.levels=2",
+                        "train.batch_size=2", "train.warmup_steps=0", "train.decay=none", "data.patch_size_px=16",
+                        "model.residual=\"spectral_wiener\"",
+                        std::string("train.spectral_wiener_doe_gradient=") + (through_filter ? "true" : "false")});
+  };
+  train::Trainer a(trainer_cfg(true)), b(trainer_cfg(false));
+  const int64_t L = int64_t(a.psf().spec().wavelengths_m.size());
+  torch::manual_seed(15);
+  const torch::Tensor mu = torch::rand({L}) * 0.3, sig = spd(L, 1e-3).to(torch::kFloat32);
+  for (train::Trainer* t : {&a, &b}) {
+    t->net()->set_spectral_prior(mu, sig, 1e-5, t->sensor().omega);
+    t->net()->start_at_baselines(1.0);
+  }
+  {  // the same start (the config's seed), so the same forward
+    torch::NoGradGuard ng;
+    for (const auto& p : a.net()->named_parameters()) b.net()->named_parameters()[p.key()].copy_(p.value());
+  }
+  torch::manual_seed(5);
+  train::Batch bt;
+  bt.radiance = torch::rand({2, L, 16, 16});
+  bt.depth_m = 0.5 + torch::rand({2, 1, 16, 16});
+  const double la = a.step(bt, 0).loss, lb = b.step(bt, 0).loss;
+  CHECK(la == Approx(lb).epsilon(1e-6));
+  const torch::Tensor ga = a.doe().parameter().grad(), gb = b.doe().parameter().grad();
+  REQUIRE(ga.defined());
+  REQUIRE(gb.defined());
+  CHECK(gb.abs().max().item<double>() > 0.0);  // the DOE still learns, through the sensor image
+  const double diff = (ga - gb).abs().max().item<double>();
+  INFO("gradient through the filter: " << diff << " of " << ga.abs().max().item<double>());
+  CHECK(diff > 1e-3 * ga.abs().max().item<double>());  // and the filter's share is gone
+}
