@@ -203,16 +203,10 @@ void Trainer::swap_average() {
   average_in_use_ = !average_in_use_;
 }
 
-void Trainer::use_average() {
+void Trainer::hold_in_parameters(bool average) {
   if (cfg_.train.ema_decay <= 0.0) return;
   if (average_.empty()) reset_average();
-  if (!average_in_use_) swap_average();
-}
-
-void Trainer::use_optimiser_weights() {
-  if (cfg_.train.ema_decay <= 0.0) return;
-  if (average_.empty()) reset_average();
-  if (average_in_use_) swap_average();
+  if (average_in_use_ != average) swap_average();
 }
 
 void Trainer::update_average(int64_t step) {
@@ -427,7 +421,7 @@ void Trainer::apply_gradients(int64_t step) {
 }
 
 StepStats Trainer::step(const Batch& batch, int64_t step) {
-  use_optimiser_weights();
+  hold_in_parameters(false);
   StepStats st = set_learning_rates(step);
   net_->train();
   // Profiling (set_profile) times each phase; the backward pass is then run in
@@ -480,7 +474,7 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
 
 ValStats Trainer::validate() {
   if (!val_.radiance.defined()) throw InputError("trainer: attach_data() first");
-  use_average();
+  hold_in_parameters(true);
   torch::NoGradGuard no_grad;
   // Per-rank batch norm: every rank validates with rank 0's running statistics.
   if (!cfg_.distributed.sync_batch_norm) ranks_->broadcast_(net_->buffers(), "rank 0's batch-norm statistics");
@@ -543,7 +537,7 @@ ValStats Trainer::validate() {
 }
 
 void Trainer::save_checkpoint(const std::string& path, int64_t next_step) {
-  use_average();  // the model; the optimiser's weights beside it
+  hold_in_parameters(true);  // the model; the optimiser's weights beside it
   NamedTensors live;
   const std::vector<std::string> names = trained_names();
   for (size_t i = 0; i < average_.size(); ++i) live.emplace_back("live." + names[i], average_[i]);
@@ -560,8 +554,10 @@ int64_t Trainer::load_checkpoint(const std::string& path) {
   }
   const int64_t next = read_checkpoint(path, state);
   if (cfg_.train.ema_decay > 0.0) {  // the parameters hold the file's model; its optimiser's weights go aside
-    reset_average();                  // a file without them (averaging off when written): both are its model
-    if (state.live_read) average_ = live;
+    if (state.live_read)
+      average_ = live;
+    else
+      reset_average();  // a file without them (averaging off when written): both are its model
     average_in_use_ = true;
   }
   // Every rank read a checkpoint of the same step, then all take rank 0's values.
@@ -577,7 +573,7 @@ int64_t Trainer::load_checkpoint(const std::string& path) {
 }
 
 void Trainer::write_val_pictures(const std::string& dir, int64_t step) {
-  use_average();
+  hold_in_parameters(true);
   torch::NoGradGuard no_grad;
   net_->eval();
   refresh_preinverse();
@@ -714,7 +710,7 @@ void Trainer::run(const std::string& out_dir, bool resume) {
     }
   }
   if (progress) progress->finish();
-  use_average();  // the trainer holds the model, as its checkpoint does
+  hold_in_parameters(true);  // the trainer holds the model, as its checkpoint does
   refresh_preinverse();
   ranks_->barrier("at the end of training");  // every rank leaves once rank 0's last checkpoint is written
   if (start >= T.steps) log::info("nothing to do: the checkpoint is at step " + std::to_string(start));

@@ -160,13 +160,12 @@ class Trainer {
   std::vector<std::string> trained_names() const;         // theirs in checkpoints: "net.<name>", "doe.raw"
   // Weight averaging (train.ema_decay > 0): the trained parameters and
   // average_ hold the optimiser's weights and their moving average, one in
-  // each; use_average() puts the average in the parameters (validation,
-  // pictures, checkpoints, evaluation), use_optimiser_weights() the other
-  // (training steps). Both are no-ops when averaging is off. reset_average()
+  // each; hold_in_parameters(true) puts the average in the parameters
+  // (validation, pictures, checkpoints, evaluation), false the optimiser's
+  // weights (training steps); a no-op when averaging is off. reset_average()
   // starts the average afresh from the parameters (after they are set from
   // outside: heads, init_checkpoint).
-  void use_average();
-  void use_optimiser_weights();
+  void hold_in_parameters(bool average);
   void reset_average();
   void update_average(int64_t step);
   void swap_average();
