@@ -335,6 +335,7 @@ ModelConfig parse_model(const JsonReader& m) {
   M.preinverse_reg = number_in(m, "preinverse_reg", M.preinverse_reg, '[', 1e-8, 1e3, ']');
   M.residual = read_choice(m, "residual", M.residual);
   M.spectral_map = read_choice(m, "spectral_map", M.spectral_map);
+  M.base_as_input = m.get_bool("base_as_input", M.base_as_input);
   if (M.residual == ResidualBase::preinverse && M.preinverse != Preinverse::wiener)
     m.fail("residual", "\"preinverse\" needs model.preinverse = \"wiener\" (got \"" + choice_name(M.preinverse) + "\")");
   if (M.residual == ResidualBase::spectral_wiener && M.spectral_map == SpectralMap::learned)

@@ -158,6 +158,11 @@ struct ModelConfig {
   // alone by hsd_eval (model_base_*). Measured, not adopted: docs/learning.md,
   // "The cube's gain and the illuminant".
   SpectralMap spectral_map = SpectralMap::fixed;
+  // true: the residual's base (the cube the head adds to) is also input to
+  // the network beside the image (+L channels), so it sees what it corrects;
+  // false: the paper's network. Measured: docs/learning.md, "The network sees
+  // the cube it corrects".
+  bool base_as_input = false;
 };
 
 // The errors a fab makes, applied to a DOE height map (optics/fabrication_error.h):

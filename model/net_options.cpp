@@ -23,6 +23,7 @@ NetOptions net_options(const Config& cfg) {
   o.residual_preinverse = cfg.model.residual == ResidualBase::preinverse;
   o.residual_spectral_wiener = cfg.model.residual == ResidualBase::spectral_wiener;
   o.learned_spectral_map = cfg.model.spectral_map == SpectralMap::learned;
+  o.base_as_input = cfg.model.base_as_input;
   return o;
 }
 

@@ -169,6 +169,14 @@ std::string forward_source(const NetOptions& opt) {
     if (opt.residual_preinverse)
       o << "        base = pin.reshape([B, " << opt.preinverse_layers << ", C, H, W]).mean(1)\n";
   }
+  // The cube the residual is added to, cb [B, L, H, W] float32 (unet.cpp's cube_base).
+  if (opt.residual_spectral_wiener)
+    o << "        cb = sw_base\n";
+  else
+    o << "        Lb = self.p_upsampling_weights.size(0)\n"
+      << "        up = torch.mm(self.p_upsampling_weights.float(), base.permute([1, 0, 2, 3]).reshape([C, B * H * W]))\n"
+      << "        cb = up.reshape([Lb, B, H, W]).permute([1, 0, 2, 3])\n";
+  if (opt.base_as_input) o << "        x = torch.cat([x, cb.to(x.dtype)], 1)\n";
   o
     << "        if ph > 0 or pw > 0:\n"
     << "            if ph < H and pw < W:\n"
@@ -198,11 +206,7 @@ std::string forward_source(const NetOptions& opt) {
     << "        d = torch.sigmoid(torch.conv2d(y_depth, self.p_head_depth_weight, self.p_head_depth_bias, [1, 1], [0, 0], [1, 1], 1))\n"
     << "        hs = hs[:, :, 0:H, 0:W].float().contiguous()\n"
     << "        d = d[:, :, 0:H, 0:W].float().contiguous()\n"
-    << (opt.residual_spectral_wiener
-            ? std::string("        hs = hs + sw_base\n")
-            : std::string("        Lb = self.p_upsampling_weights.size(0)\n"
-                          "        up = torch.mm(self.p_upsampling_weights.float(), base.permute([1, 0, 2, 3]).reshape([C, B * H * W]))\n"
-                          "        hs = hs + up.reshape([Lb, B, H, W]).permute([1, 0, 2, 3])\n"))
+    << "        hs = hs + cb\n"
     << "        inv_far = 1.0 / " << c10::str(opt.depth_max_m) << "\n"
     << "        inv_near = 1.0 / " << c10::str(opt.depth_min_m) << "\n"
     << "        depth = 1.0 / (inv_far + d * (inv_near - inv_far))\n"

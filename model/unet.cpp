@@ -68,7 +68,9 @@ HsdNetImpl::HsdNetImpl(const NetOptions& options, const torch::Tensor& upsamplin
   for (int64_t l = 0; l < opt_.levels; ++l)
     down_.push_back(register_module(
         "down" + std::to_string(l),
-        block(l == 0 ? opt_.in_channels * (1 + opt_.preinverse_layers) : width[size_t(l - 1)], width[size_t(l)])));
+        block(l == 0 ? opt_.in_channels * (1 + opt_.preinverse_layers) + (opt_.base_as_input ? opt_.bands : 0)
+                     : width[size_t(l - 1)],
+              width[size_t(l)])));
   bottom_ = register_module("bottom", block(width[size_t(opt_.levels - 1)], width[size_t(opt_.levels)]));
   for (int64_t l = opt_.levels - 1; l >= 0; --l) {
     const std::string s = std::to_string(l);
@@ -152,6 +154,17 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& p
     if (opt_.residual_preinverse)
       base = preinverse_layer_mean(p, opt_.preinverse_layers).to(image.scalar_type());
   }
+  // The cube the head's residual is added to [B, L, H, W] (float32).
+  torch::Tensor cube_base;
+  if (opt_.residual_spectral_wiener) {
+    cube_base = base_in.defined() ? base_in : spectral_wiener(image);
+    TORCH_CHECK(cube_base.dim() == 4 && cube_base.size(0) == image.size(0) && cube_base.size(1) == opt_.bands &&
+                    cube_base.size(2) == H && cube_base.size(3) == W,
+                "residual base must be [B, ", opt_.bands, ", H, W], got ", cube_base.sizes());
+  } else {
+    cube_base = spectral_upsample(weights_, base);
+  }
+  if (opt_.base_as_input) x = torch::cat({x, cube_base.to(x.scalar_type())}, 1);
   if (ph || pw) {  // reflect needs pad < size; replicate always works
     F::PadFuncOptions o({0, pw, 0, ph});
     if (ph < H && pw < W) o.mode(torch::kReflect);
@@ -188,14 +201,7 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& p
     d = d.narrow(2, 0, H).narrow(3, 0, W);
   }
   NetOutput out;
-  if (opt_.residual_spectral_wiener) {
-    const torch::Tensor b = base_in.defined() ? base_in : spectral_wiener(image);
-    TORCH_CHECK(b.dim() == 4 && b.size(0) == image.size(0) && b.size(1) == opt_.bands && b.size(2) == H && b.size(3) == W,
-                "residual base must be [B, ", opt_.bands, ", H, W], got ", b.sizes());
-    out.hs = hs + b;
-  } else {
-    out.hs = hs + spectral_upsample(weights_, base);
-  }
+  out.hs = hs + cube_base;
   const double inv_far = 1.0 / opt_.depth_max_m, inv_near = 1.0 / opt_.depth_min_m;
   out.inv_depth = inv_far + d * (inv_near - inv_far);
   out.depth_m = 1.0 / out.inv_depth;

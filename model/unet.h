@@ -54,6 +54,11 @@ struct NetOptions {
   // The residual's spectral-upsampling weights: false = a buffer (the paper's
   // fixed map), true = a parameter started at the given weights (learned).
   bool learned_spectral_map = false;
+  // true = the residual's base (the cube the head's output is added to) is
+  // also input to the first block, beside the image and the pre-inversion
+  // (+L channels): the network sees the answer it corrects. false = the
+  // paper's network, which adds its residual to a base it does not see.
+  bool base_as_input = false;
 };
 
 struct NetOutput {

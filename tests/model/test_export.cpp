@@ -136,7 +136,9 @@ TEST_CASE("export: a network with the Wiener pre-inversion exports with its PSFs
   o.bands = 4, o.base_width = 8, o.levels = 2, o.norm = NormKind::group, o.preinverse_layers = 3, o.preinverse_reg = 0.02;
   o.residual_preinverse = GENERATE(false, true);  // the cube's residual on the image or on the deconvolutions
   o.learned_spectral_map = GENERATE(false, true);  // model.spectral_map = "learned": the map is a parameter
-  INFO("residual_preinverse " << o.residual_preinverse << ", learned spectral map " << o.learned_spectral_map);
+  o.base_as_input = GENERATE(false, true);          // model.base_as_input: the residual's base is input too
+  INFO("residual_preinverse " << o.residual_preinverse << ", learned spectral map " << o.learned_spectral_map
+                              << ", base as input " << o.base_as_input);
   model::HsdNet net(o, torch::rand({4, 3}));
   net->eval();
   CHECK_THROWS_AS(model::export_torchscript(net, {{400e-9, 450e-9, 500e-9, 550e-9}, {}, {}}), InputError);  // no PSFs yet
@@ -160,7 +162,8 @@ TEST_CASE("export: a network with the spectral Wiener residual exports with its 
   model::NetOptions o;
   o.bands = 4, o.base_width = 8, o.levels = 2, o.norm = NormKind::group, o.residual_spectral_wiener = true;
   o.preinverse_layers = GENERATE(0, 2);  // with and without the Wiener pre-inversion as input
-  INFO("preinverse layers " << o.preinverse_layers);
+  o.base_as_input = GENERATE(false, true);  // model.base_as_input: the spectral Wiener cube is input too
+  INFO("preinverse layers " << o.preinverse_layers << ", base as input " << o.base_as_input);
   model::HsdNet net(o, torch::rand({4, 3}));
   net->eval();
   const torch::Tensor a = torch::rand({4, 4});

@@ -89,3 +89,61 @@ TEST_CASE("model.spectral_map: learned makes the residual's map a parameter star
     CHECK(std::string(e.what()).find("model.spectral_map") != std::string::npos);
   }
 }
+
+TEST_CASE("model.base_as_input: the residual's base is input beside the image, the cube then depends on it beyond the sum, and the heads still start at it", "[model]") {
+  Config cfg = load_config(test::source_path("configs/base.json"), {"model.base_width=4", "model.levels=1", "model.norm=group"});
+  CHECK_FALSE(cfg.model.base_as_input);
+  model::NetOptions off = model::net_options(cfg);
+  CHECK_FALSE(off.base_as_input);
+  cfg = load_config(test::source_path("configs/base.json"),
+                    {"model.base_width=4", "model.levels=1", "model.norm=group", "model.base_as_input=true"});
+  model::NetOptions on = model::net_options(cfg);
+  REQUIRE(on.base_as_input);
+  // An explicit base (the spectral Wiener residual takes it as an argument),
+  // so that the base alone can change while the image stays.
+  off.residual_spectral_wiener = on.residual_spectral_wiener = true;
+  const int64_t L = on.bands;
+  torch::manual_seed(5);
+  const torch::Tensor w = torch::rand({L, 3});
+  model::HsdNet without(off, w), with(on, w);
+  auto first_block = [](model::HsdNet& n) {
+    for (const auto& p : n->named_parameters())
+      if (p.key().rfind("down0.", 0) == 0 && p.value().dim() == 4) return p.value();
+    return torch::Tensor();
+  };
+  REQUIRE(first_block(without).defined());
+  REQUIRE(first_block(with).defined());
+  CHECK(first_block(without).size(1) == 3);
+  CHECK(first_block(with).size(1) == 3 + L);  // the image and the L bands of its base
+  without->eval(), with->eval();
+  const torch::Tensor image = torch::rand({2, 3, 8, 8}), base = torch::rand({2, L, 8, 8}),
+                      delta = 0.2 * torch::randn({2, L, 8, 8});
+  {
+    torch::NoGradGuard ng;
+    // Random heads. Without the option the base only adds: the cube moves by
+    // exactly δ. With it the network reads the base: δ plus its response.
+    auto response = [&](model::HsdNet& n) {
+      return (n->forward(image, {}, base + delta).hs - n->forward(image, {}, base).hs - delta).abs().max().item<double>();
+    };
+    CHECK(response(without) < 1e-6);
+    CHECK(response(with) > 1e-3);
+    // The depth head too reads it.
+    CHECK((with->forward(image, {}, base + delta).depth_m - with->forward(image, {}, base).depth_m).abs().max().item<double>() > 1e-5);
+    CHECK(torch::equal(without->forward(image, {}, base + delta).depth_m, without->forward(image, {}, base).depth_m));
+    // Started at the baselines (cube head zero) the cube is the base exactly.
+    with->start_at_baselines(1.0);
+    CHECK(torch::equal(with->forward(image, {}, base).hs, base));
+  }
+  // The paper's residual on the image: the base is the image's spectral
+  // upsampling, and the first block gets its gradient on those channels.
+  on.residual_spectral_wiener = false;
+  model::HsdNet up(on, w);
+  up->train();
+  up->forward(image).depth_m.sum().backward();
+  const torch::Tensor g = first_block(up).grad();
+  REQUIRE(g.defined());
+  CHECK(g.narrow(1, 3, L).abs().sum().item<double>() > 0.0);
+  up->start_at_baselines(1.0);
+  torch::NoGradGuard ng;
+  CHECK(torch::allclose(up->forward(image).hs, model::spectral_upsample(w, image), 0.0, 1e-6));
+}
