@@ -43,7 +43,7 @@ torch::Tensor spd(int64_t L, double scale) {
 torch::Tensor reference_cube(const torch::Tensor& image, const torch::Tensor& psf, const torch::Tensor& omega,
                              const model::SpectralPrior& prior) {
   const int64_t L = psf.size(0), P = psf.size(2), r = P / 2;
-  const int64_t B = image.size(0), H = image.size(2), W = image.size(3);
+  const int64_t H = image.size(2), W = image.size(3);
   const int64_t nh = fast_fft_size(H + 2 * r), nw = fast_fft_size(W + 2 * r);
   const auto cd = torch::kComplexDouble;
   torch::Tensor k = F::pad(psf, F::PadFuncOptions({0, nw - P, 0, nh - P}));
