@@ -11,23 +11,18 @@ namespace hsd::model {
 
 namespace F = torch::nn::functional;
 
-namespace {
-
-// m [..., 3, 3] (invertible) -> m⁻¹ = adj(m) / det(m), elementwise over the leading dimensions.
-torch::Tensor inverse3x3(const torch::Tensor& m) {
-  auto e = [&](int64_t r, int64_t c) { return m.select(-2, r).select(-1, c); };
-  const torch::Tensor a = e(0, 0), b = e(0, 1), c = e(0, 2), d = e(1, 0), ee = e(1, 1), f = e(1, 2), g = e(2, 0),
-                      h = e(2, 1), i = e(2, 2);
-  const torch::Tensor c00 = ee * i - f * h, c01 = f * g - d * i, c02 = d * h - ee * g;
-  const torch::Tensor det = a * c00 + b * c01 + c * c02;
-  const torch::Tensor adj = torch::stack({torch::stack({c00, c * h - b * i, b * f - c * ee}, -1),
-                                          torch::stack({c01, a * i - c * g, c * d - a * f}, -1),
-                                          torch::stack({c02, b * g - a * h, a * ee - b * d}, -1)},
-                                         -2);
-  return adj / det.unsqueeze(-1).unsqueeze(-1);
+torch::Tensor spectral_wiener_factor(const torch::Tensor& omega, const torch::Tensor& covariance) {
+  torch::NoGradGuard no_grad;
+  const auto f64 = torch::TensorOptions().dtype(torch::kFloat64).device(omega.device());
+  const torch::Tensor Om = omega.to(f64), Sig = covariance.to(f64);
+  const int64_t L = Om.size(1);
+  const auto eig = torch::linalg_eigh(0.5 * (Sig + Sig.t()));
+  const torch::Tensor e = std::get<0>(eig), U = std::get<1>(eig);
+  // eigenvalues at rounding level (and negative ones, from rounding) carry nothing
+  const torch::Tensor keep = e > 1e-14 * e.abs().max().clamp_min(1e-300);
+  const torch::Tensor V = (U * e.clamp_min(0).sqrt().view({1, L})).index({torch::indexing::Slice(), keep});  // [L, R]
+  return (Om.unsqueeze(2) * V.unsqueeze(0)).transpose(1, 2).reshape({-1, L}).contiguous();                     // [3R, L]
 }
-
-}  // namespace
 
 torch::Tensor spectral_wiener_cube(const torch::Tensor& image, const torch::Tensor& psf, const torch::Tensor& omega,
                                    const SpectralPrior& prior) {
@@ -42,41 +37,96 @@ torch::Tensor spectral_wiener_cube(const torch::Tensor& image, const torch::Tens
                      std::to_string(L) + ", " + std::to_string(L) + "]");
   if (!(prior.noise_var > 0)) throw InputError("spectral_wiener_cube: the noise variance must be > 0");
   const int64_t B = image.size(0), H = image.size(2), W = image.size(3);
-  const int64_t nh = fast_fft_size(H + 2 * r), nw = fast_fft_size(W + 2 * r), nf = nw / 2 + 1;
+  const int64_t nh = fast_fft_size(H + 2 * r), nw = fast_fft_size(W + 2 * r), nf = nw / 2 + 1, F_ = nh * nf;
   const auto dtype = image.scalar_type() == torch::kFloat64 ? torch::kFloat64 : torch::kFloat32;
   const auto f64 = torch::TensorOptions().dtype(torch::kFloat64).device(image.device());
-  const auto c128 = torch::TensorOptions().dtype(torch::kComplexDouble).device(image.device());
-  const torch::Tensor Om = omega.to(f64), mu = prior.mean.to(f64).reshape({L});
-  const torch::Tensor Sig = prior.covariance.to(f64).to(torch::kComplexDouble);
-  // The filter [F, L, 3], in float64.
-  torch::Tensor k = F::pad(psf.to(f64), F::PadFuncOptions({0, nw - P, 0, nh - P}));
-  k = torch::roll(k, {-r, -r}, {2, 3});
-  // With H_z = Ω diag(K_z): E_z[H_z Σ H_zᴴ] = Ω (Σ ∘ G) Ωᵀ, G_λμ = E_z[K_λz conj(K_μz)],
-  // and Σ H̄ᴴ = (Σ ∘ conj(K̄)ᵀ-rows) Ωᵀ: large matrix products, not F tiny ones.
-  const int64_t F_ = nh * nf;
-  const torch::Tensor Kf = torch::fft::rfft2(k).reshape({L, K, F_}).permute({2, 0, 1});  // OTFs [F, L, K]
-  const torch::Tensor G = torch::matmul(Kf, Kf.conj().transpose(1, 2)) / double(K);     // [F, L, L]
-  const torch::Tensor Oc = Om.to(torch::kComplexDouble);                                 // [3, L]
-  const torch::Tensor T = torch::matmul((G * Sig.unsqueeze(0)).reshape({F_ * L, L}), Oc.t()).reshape({F_, L, 3});
-  const torch::Tensor A = torch::matmul(T.transpose(0, 1).reshape({L, F_ * 3}).t(), Oc.t()).reshape({F_, 3, 3}).transpose(1, 2);  // Ω T [F, 3, 3]
-  const torch::Tensor Kbar = Kf.mean(2);                                                 // [F, L]
-  const torch::Tensor C =
-      torch::matmul((Sig.unsqueeze(0) * Kbar.conj().unsqueeze(1)).reshape({F_ * L, L}), Oc.t()).reshape({F_, L, 3});  // Σ H̄ᴴ
+  // No gradient flows into Ω or Σ (the camera response and the prior are fixed).
+  const torch::Tensor Om = omega.to(f64).detach(), mu = prior.mean.to(f64).reshape({L});
+  const torch::Tensor Sig = prior.covariance.to(f64).detach();
+
+  // OTFs K_λz(f) [L, K, F], float64: the PSF placed with its centre at pixel
+  // (0, 0) by its four quadrants (no padded copy rolled afterwards).
+  torch::Tensor k = torch::zeros({L, K, nh, nw}, f64);
+  {
+    const torch::Tensor p = psf.to(f64);
+    const int64_t a = P - r;  // rows/columns r..P-1 of the PSF go to 0..a-1
+    k.narrow(2, 0, a).narrow(3, 0, a).copy_(p.narrow(2, r, a).narrow(3, r, a));
+    k.narrow(2, 0, a).narrow(3, nw - r, r).copy_(p.narrow(2, r, a).narrow(3, 0, r));
+    k.narrow(2, nh - r, r).narrow(3, 0, a).copy_(p.narrow(2, 0, r).narrow(3, r, a));
+    k.narrow(2, nh - r, r).narrow(3, nw - r, r).copy_(p.narrow(2, 0, r).narrow(3, 0, r));
+  }
+  const torch::Tensor Kf = torch::fft::rfft2(k).reshape({L, K, F_});  // [L, K, F]
+  const torch::Tensor Kbar = Kf.mean(1);                              // [L, F]
+
+  // E_z[H_z Σ H_zᴴ] with H_z = Ω diag(K_z) and Σ = V Vᵀ (spectral_wiener_factor,
+  // rank R): the Gram matrix (1/K) Σ_z Q_z Q_zᴴ of Q_z = Ω diag(K_z) V [3, R].
+  // Q is one real GEMM per block of frequencies, [3R, L] · [L, 2·K·n] (the
+  // OTFs' real view), and the Gram its three squared norms and three products
+  // summed along R·K; a block holds about 4 MiB of Q. (Formed as F batched
+  // products of L × K by K × L complex matrices instead, the whole filter took
+  // 2.7× as long at the paper's 25 bands and 7 layers: docs/benchmarks.md.)
+  const torch::Tensor Vq = spectral_wiener_factor(Om, Sig);  // [3R, L], rows (c, j)
+  const int64_t rk = Vq.size(0) / 3 * K;                     // R·K
+  const int64_t chunk = std::max<int64_t>(256, (int64_t(1) << 22) / std::max<int64_t>(1, 3 * rk * 16));
+  std::vector<torch::Tensor> a00, a11, a22, a01, a02, a12;
+  // split, not narrow per block: the blocks' gradients then meet in one concatenation
+  for (const torch::Tensor& block : Kf.split(chunk, 2)) {
+    const int64_t n = block.size(2);
+    const torch::Tensor kc = torch::view_as_real(block.contiguous()).reshape({L, K * n * 2});
+    const torch::Tensor qr = torch::matmul(Vq, kc).view({3, rk, n * 2});  // Q's real view [3, R·K, n·2]
+    const torch::Tensor q = torch::view_as_complex(qr.view({3, rk, n, 2}));
+    // sums along R·K as reductions over the leading dimension of 2-D real views
+    auto diag = [&](int64_t c) { return qr.select(0, c).square().sum(0).view({n, 2}).sum(1); };
+    auto off = [&](int64_t c, int64_t d) {
+      return torch::view_as_complex(torch::view_as_real(q.select(0, c) * q.select(0, d).conj()).view({rk, n * 2}).sum(0).view({n, 2}));
+    };
+    a00.push_back(diag(0));
+    a11.push_back(diag(1));
+    a22.push_back(diag(2));
+    a01.push_back(off(0, 1));
+    a02.push_back(off(0, 2));
+    a12.push_back(off(1, 2));
+  }
+  const double inv_k = 1.0 / double(K);
+  const torch::Tensor A00 = torch::cat(a00) * inv_k, A11 = torch::cat(a11) * inv_k, A22 = torch::cat(a22) * inv_k;
+  const torch::Tensor A01 = torch::cat(a01) * inv_k, A02 = torch::cat(a02) * inv_k, A12 = torch::cat(a12) * inv_k;
+
   const torch::Tensor fy = torch::fft::fftfreq(nh, f64).view({-1, 1}), fx = torch::fft::rfftfreq(nw, f64).view({1, -1});
   torch::Tensor S = torch::pow(torch::sqrt(fy.square() + fx.square()) + 1.0 / double(std::max(nh, nw)), -prior.psd_exponent);
   S = S.flatten();
   S = S / S.slice(0, 1).mean();
   S = torch::cat({S.slice(0, 0, 1) * 1e4, S.slice(0, 1)});
-  // W = S C (S A + σ² I)⁻¹, the 3×3 inverse by cofactors (elementwise over
-  // the frequencies: a batched LAPACK solve of 3×3 systems is ~10× slower).
-  const torch::Tensor M = S.view({-1, 1, 1}) * A + prior.noise_var * torch::eye(3, c128);
-  const torch::Tensor Wf = torch::matmul(S.view({-1, 1, 1}) * C, inverse3x3(M));
-  // Apply to the image minus the prior's mean image, edge-replicated.
-  const auto cdt = dtype == torch::kFloat64 ? torch::kComplexDouble : torch::kComplexFloat;
-  torch::Tensor y = image.to(dtype) - torch::matmul(Om, mu).to(dtype).view({1, 3, 1, 1});
+
+  // M = S A + σ² I (Hermitian), its inverse by cofactors, elementwise over the
+  // frequencies (a batched LAPACK solve of 3×3 systems is ~10× slower).
+  const double s2 = prior.noise_var;
+  const torch::Tensor m00 = S * A00 + s2, m11 = S * A11 + s2, m22 = S * A22 + s2;  // real
+  const torch::Tensor m01 = S * A01, m02 = S * A02, m12 = S * A12;                 // complex; m10 = conj(m01), ...
+  const torch::Tensor c00 = m11 * m22 - torch::real(m12 * m12.conj());
+  const torch::Tensor c11 = m00 * m22 - torch::real(m02 * m02.conj());
+  const torch::Tensor c22 = m00 * m11 - torch::real(m01 * m01.conj());
+  const torch::Tensor c01 = m02 * m12.conj() - m01 * m22;  // adj(M)_01
+  const torch::Tensor c02 = m01 * m12 - m02 * m11;          // adj(M)_02
+  const torch::Tensor c12 = m02 * m01.conj() - m00 * m12;  // adj(M)_12
+  const torch::Tensor det = m00 * c00 + torch::real(m01 * c01.conj()) + torch::real(m02 * c02.conj());
+
+  // X̂ = S Σ diag(conj K̄) Ωᵀ M⁻¹ (Y − Ω μ δ_f0): M⁻¹ per frequency, then real
+  // GEMMs with Ωᵀ and Σ over the image's real view; float64 throughout, the
+  // cube returned to the image's precision before the inverse FFT.
+  torch::Tensor y = image.to(f64) - torch::matmul(Om, mu).view({1, 3, 1, 1});
   y = F::pad(y, F::PadFuncOptions({r, nw - W - r, r, nh - H - r}).mode(torch::kReplicate));
-  const torch::Tensor Y = torch::fft::rfft2(y).reshape({B, 3, nh * nf});            // [B, 3, F]
-  const torch::Tensor X = torch::einsum("flc,bcf->blf", {Wf.to(cdt), Y}).reshape({B, L, nh, nf});
+  const torch::Tensor Y = torch::fft::rfft2(y).reshape({B, 3, F_});
+  const torch::Tensor Y0 = Y.select(1, 0), Y1 = Y.select(1, 1), Y2 = Y.select(1, 2);
+  const torch::Tensor id = (1.0 / det);
+  const torch::Tensor Z0 = (c00 * Y0 + c01 * Y1 + c02 * Y2) * id;
+  const torch::Tensor Z1 = (c01.conj() * Y0 + c11 * Y1 + c12 * Y2) * id;
+  const torch::Tensor Z2 = (c02.conj() * Y0 + c12.conj() * Y1 + c22 * Y2) * id;
+  const torch::Tensor Zr = torch::view_as_real(torch::stack({Z0, Z1, Z2}, 0)).reshape({3, B * F_ * 2});  // [3, B·F·2]
+  torch::Tensor u = torch::view_as_complex(torch::matmul(Om.t(), Zr).view({L, B, F_, 2}));              // Ωᵀ Z [L, B, F]
+  u = u * Kbar.conj().unsqueeze(1);
+  const torch::Tensor xr = torch::matmul(Sig, torch::view_as_real(u).reshape({L, B * F_ * 2})).view({L, B, F_, 2});
+  const auto cdt = dtype == torch::kFloat64 ? torch::kComplexDouble : torch::kComplexFloat;
+  const torch::Tensor X = (torch::view_as_complex(xr) * S).to(cdt).transpose(0, 1).reshape({B, L, nh, nf});
   const torch::Tensor x = torch::fft::irfft2(X, c10::IntArrayRef{nh, nw});
   return x.narrow(2, r, H).narrow(3, r, W) + mu.to(dtype).view({1, L, 1, 1});
 }

@@ -19,10 +19,10 @@
 // filter (wiener_preinverse.h) cannot. A classical baseline, and the cube
 // head's residual base with model.residual = "spectral_wiener".
 // Borders as in wiener_preinverse.h (edge replication to an FFT-friendly size
-// at least H + P − 1). The filter is computed in float64 (the solves and the
-// DC weight span many decades); the image is filtered in its own precision
-// (float32, or float64 for gradient checks). Differentiable in the image and
-// the PSFs.
+// at least H + P − 1). The filter is computed and applied in float64 (the
+// solves and the DC weight span many decades); the cube returns to the
+// image's precision before the inverse FFT. Differentiable in the image and
+// the PSFs, not in Ω or the prior.
 #pragma once
 #include <torch/types.h>
 
@@ -34,6 +34,11 @@ struct SpectralPrior {
   double noise_var = 0;      // σ² per pixel, in the image's units (> 0)
   double psd_exponent = 2.0; // α of S(f)
 };
+
+// Σ = V Vᵀ from Σ's eigen-decomposition (eigenvalues below 1e-14 of the
+// largest dropped: R columns), as the rows Ω_cλ V_λj: omega [3, L], covariance
+// [L, L] -> [3R, L] float64, rows ordered (c, j). No gradient.
+torch::Tensor spectral_wiener_factor(const torch::Tensor& omega, const torch::Tensor& covariance);
 
 // image [B, 3, H, W], psf [L, K, P, P] (P odd, each summing to ≤ 1), omega
 // [3, L] (the camera response that made the image), prior -> [B, L, H, W].

@@ -13,7 +13,11 @@ struct StepStats {
 // Seconds per phase of Trainer::step, summed over `steps` steps (set_profile).
 // CPU timings (a CUDA device would need a synchronisation per phase).
 struct StepProfile {
-  double psf_forward = 0, sensor_forward = 0, network_forward = 0, loss = 0;
+  // inputs_forward: the network's linear inputs and base (the Wiener
+  // pre-inversion, the spectral Wiener cube) from the rendered window;
+  // network_forward: the U-Net and its heads. The inputs' backward is in
+  // network_backward (the graph is cut at the rendered window).
+  double psf_forward = 0, sensor_forward = 0, inputs_forward = 0, network_forward = 0, loss = 0;
   double network_backward = 0, sensor_backward = 0, psf_backward = 0, optimizer = 0;
   int64_t steps = 0;
 };

@@ -446,6 +446,7 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
     net_->set_band_psf(si.band_psf);
     base_in = centre(net_->spectral_wiener(window));
   }
+  timer.lap(&StepProfile::inputs_forward);
   const model::NetOutput out = net_->forward(centre(window), pre_in, base_in);
   timer.lap(&StepProfile::network_forward);
   const LossTerms L =

@@ -59,6 +59,7 @@ void append_profile(BenchOutput& out, const train::StepProfile& prof, const std:
   const double n = double(std::max<int64_t>(prof.steps, 1));
   const std::vector<std::pair<std::string, double>> phases{
       {"PSF forward", prof.psf_forward},         {"sensor image forward", prof.sensor_forward},
+      {"network inputs forward (pre-inversion, spectral Wiener)", prof.inputs_forward},
       {"network forward", prof.network_forward}, {"loss (and its read-out)", prof.loss},
       {"network backward", prof.network_backward}, {"sensor image backward", prof.sensor_backward},
       {"PSF backward", prof.psf_backward},       {"gradient checks, clipping, Adam", prof.optimizer}};
@@ -67,10 +68,10 @@ void append_profile(BenchOutput& out, const train::StepProfile& prof, const std:
   out.text += format("\nphases of the step (%s, mean of %lld profiled steps):\n", precision.c_str(), (long long)prof.steps);
   Json jp = Json::object();
   for (const auto& [name, total] : phases) {
-    out.text += format("  %-34s %8.3f s  %5.1f%%\n", name.c_str(), total / n, 100.0 * total / n / sum);
+    out.text += format("  %-56s %8.3f s  %5.1f%%\n", name.c_str(), total / n, 100.0 * total / n / sum);
     jp[name] = total / n;
   }
-  out.text += format("  %-34s %8.3f s\n", "sum", sum);
+  out.text += format("  %-56s %8.3f s\n", "sum", sum);
   out.json["profile_seconds"] = jp;
   out.json["profile_step_wall_seconds"] = wall_s;  // wall time per profiled step (the phases are disjoint parts of it)
 }
