@@ -60,8 +60,10 @@ void keep_freed_memory(int64_t trim_threshold_mib = 1024);
 void release_freed_memory();
 
 // Runs body(args) and maps exceptions to exit codes with one line on stderr.
-// Calls use_passive_openmp and keep_freed_memory first.
-int run_app(const AppSpec& spec, int argc, char** argv, const std::function<int(const AppArgs&)>& body);
+// Calls use_passive_openmp and keep_freed_memory first. Does not return: it
+// flushes stdout and stderr and ends the process with the exit code, skipping
+// the libraries' exit-time destructors (for apps' main only).
+[[noreturn]] int run_app(const AppSpec& spec, int argc, char** argv, const std::function<int(const AppArgs&)>& body);
 
 // Sets torch's intra-op threads (0 = all cores) and prints "threads: N".
 int setup_threads(int64_t requested, bool print = true);
