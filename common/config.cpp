@@ -336,6 +336,8 @@ ModelConfig parse_model(const JsonReader& m) {
   M.residual = read_choice(m, "residual", M.residual);
   M.spectral_map = read_choice(m, "spectral_map", M.spectral_map);
   M.base_as_input = m.get_bool("base_as_input", M.base_as_input);
+  M.depth_bins = int_in(m, "depth_bins", M.depth_bins, 0, 1024, " (0 = a sigmoid head, >= 2 = bins)");
+  if (M.depth_bins == 1) m.fail("depth_bins", "must be 0 (a sigmoid head) or >= 2 (bins), got 1");
   if (M.residual == ResidualBase::preinverse && M.preinverse != Preinverse::wiener)
     m.fail("residual", "\"preinverse\" needs model.preinverse = \"wiener\" (got \"" + choice_name(M.preinverse) + "\")");
   if (M.residual == ResidualBase::spectral_wiener && M.spectral_map == SpectralMap::learned)
@@ -372,6 +374,7 @@ TrainConfig parse_train(const JsonReader& t) {
   T.loss_beta = t.get_number("loss_beta", T.loss_beta);
   T.loss_gamma = t.get_number("loss_gamma", T.loss_gamma);
   T.depth_loss = read_choice(t, "depth_loss", T.depth_loss);
+  T.depth_ce_weight = number_in(t, "depth_ce_weight", T.depth_ce_weight, '[', 0.0, 1e6, ']');
   for (const auto& [k, v] : {std::pair<const char*, double>{"loss_alpha", T.loss_alpha},
                              {"loss_beta", T.loss_beta}, {"loss_gamma", T.loss_gamma}})
     if (v < 0.0) t.fail(k, "must be >= 0");
@@ -503,6 +506,9 @@ Config parse_config(const Json& resolved, std::vector<std::string>* unlike_defau
                                                " px of a " + std::to_string(c.data.patch_size_px) +
                                                "-px patch (data.patch_size_px)" +
                                                (bottom < 1 ? std::string("") : " for a batch of one (batch norm needs 2 values)"));
+  if (c.train.depth_ce_weight > 0.0 && c.model.depth_bins < 2)
+    input_error("config key train.depth_ce_weight", "> 0 needs the bins head (model.depth_bins >= 2, got " +
+                                                        std::to_string(c.model.depth_bins) + ")");
   r.check_all_used();
   if (unlike_defaults) *unlike_defaults = r.unlike_fallback();
   return c;

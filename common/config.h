@@ -163,6 +163,9 @@ struct ModelConfig {
   // false: the paper's network. Measured: docs/learning.md, "The network sees
   // the cube it corrects".
   bool base_as_input = false;
+  // The depth head: 0 = a sigmoid (the paper's); N >= 2 = a soft argmax over N
+  // bins of normalised inverse depth (model/unet.h).
+  int64_t depth_bins = 0;
 };
 
 // The errors a fab makes, applied to a DOE height map (optics/fabrication_error.h):
@@ -207,6 +210,9 @@ struct TrainConfig {
   // The depth term's unit: "inverse_l1" (|1/Ẑ − 1/Z|, the paper) or
   // "metric_l1" (|Ẑ − Z| in metres, the unit the evaluation reports).
   DepthLoss depth_loss = DepthLoss::inverse_l1;
+  // Weight of the depth bins' cross-entropy against two-hot targets (train/loss.h);
+  // > 0 needs model.depth_bins >= 2.
+  double depth_ce_weight = 0.0;
   int64_t val_every = 100;          // steps between validations (and the last step)
   int64_t val_patches = 8;          // fixed validation patches from the val split
   int64_t checkpoint_every = 100;   // steps between checkpoints (and the last step)

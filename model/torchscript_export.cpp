@@ -228,10 +228,16 @@ std::string forward_source(const NetOptions& opt) {
     }
   }
   o << "        hs = torch.conv2d(y_hs, self.p_head_hs_weight, self.p_head_hs_bias, [1, 1], [0, 0], [1, 1], 1)\n"
-    << "        d = torch.sigmoid(torch.conv2d(y_depth, self.p_head_depth_weight, self.p_head_depth_bias, [1, 1], [0, 0], [1, 1], 1))\n"
+    << "        d = torch.conv2d(y_depth, self.p_head_depth_weight, self.p_head_depth_bias, [1, 1], [0, 0], [1, 1], 1)\n"
     << "        hs = hs[:, :, 0:H, 0:W].float().contiguous()\n"
-    << "        d = d[:, :, 0:H, 0:W].float().contiguous()\n"
-    << "        hs = hs + cb\n"
+    << "        d = d[:, :, 0:H, 0:W].float().contiguous()\n";
+  if (opt.depth_bins >= 2)  // the soft argmax over the bins' centres k/(N-1) (unet.cpp)
+    o << "        t = (torch.cumsum(d.new_ones([" << opt.depth_bins << "]), 0) - 1.0) / " << c10::str(double(opt.depth_bins - 1))
+      << "\n"
+      << "        d = (torch.softmax(d, 1) * t.view([1, " << opt.depth_bins << ", 1, 1])).sum(1, keepdim=True)\n";
+  else
+    o << "        d = torch.sigmoid(d)\n";
+  o << "        hs = hs + cb\n"
     << "        inv_far = 1.0 / " << c10::str(opt.depth_max_m) << "\n"
     << "        inv_near = 1.0 / " << c10::str(opt.depth_min_m) << "\n"
     << "        depth = 1.0 / (inv_far + d * (inv_near - inv_far))\n"

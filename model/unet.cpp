@@ -81,7 +81,9 @@ HsdNetImpl::HsdNetImpl(const NetOptions& options, const torch::Tensor& upsamplin
     dec_depth_.push_back(register_module("dec_depth" + s, block(2 * w, w)));
   }
   head_hs_ = register_module("head_hs", torch::nn::Conv2d(torch::nn::Conv2dOptions(width[0], opt_.bands, 1)));
-  head_depth_ = register_module("head_depth", torch::nn::Conv2d(torch::nn::Conv2dOptions(width[0], 1, 1)));
+  TORCH_CHECK(opt_.depth_bins == 0 || opt_.depth_bins >= 2, "depth_bins must be 0 (a sigmoid) or >= 2");
+  head_depth_ = register_module(
+      "head_depth", torch::nn::Conv2d(torch::nn::Conv2dOptions(width[0], std::max<int64_t>(1, opt_.depth_bins), 1)));
   const torch::Tensor w0 = upsampling_weights.to(torch::kFloat32).clone();
   weights_ = opt_.learned_spectral_map ? register_parameter("upsampling_weights", w0)
                                        : register_buffer("upsampling_weights", w0);
@@ -195,12 +197,19 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& p
     return y;
   };
   torch::Tensor hs = run_conv(head_hs_, decode(up_hs_, dec_hs_)).to(torch::kFloat32).contiguous();
-  torch::Tensor d = torch::sigmoid(run_conv(head_depth_, decode(up_depth_, dec_depth_)).to(torch::kFloat32).contiguous());
+  torch::Tensor d = run_conv(head_depth_, decode(up_depth_, dec_depth_)).to(torch::kFloat32).contiguous();
   if (ph || pw) {
     hs = hs.narrow(2, 0, H).narrow(3, 0, W);
     d = d.narrow(2, 0, H).narrow(3, 0, W);
   }
   NetOutput out;
+  if (opt_.depth_bins >= 2) {  // the soft argmax over the bins' centres t_k = k/(N-1)
+    out.depth_logits = d;
+    const torch::Tensor t = torch::linspace(0.0, 1.0, opt_.depth_bins, d.options()).view({1, -1, 1, 1});
+    d = (torch::softmax(d, 1) * t).sum(1, /*keepdim=*/true);
+  } else {
+    d = torch::sigmoid(d);
+  }
   out.hs = hs + cube_base;
   const double inv_far = 1.0 / opt_.depth_max_m, inv_near = 1.0 / opt_.depth_min_m;
   out.inv_depth = inv_far + d * (inv_near - inv_far);
@@ -216,7 +225,25 @@ void HsdNetImpl::start_at_baselines(double inv_depth_per_m) {
   head_depth_->weight.zero_();
   const double inv_far = 1.0 / opt_.depth_max_m, inv_near = 1.0 / opt_.depth_min_m;
   const double u = std::clamp((inv_depth_per_m - inv_far) / (inv_near - inv_far), 1e-3, 1.0 - 1e-3);
-  head_depth_->bias.fill_(std::log(u / (1.0 - u)));
+  if (opt_.depth_bins >= 2) {
+    // Gaussian logits −(t_k − μ)²/(2σ²), σ two bins wide, with μ found by
+    // bisection so that the soft argmax Σ p_k t_k is u (it rises monotonically
+    // with μ). Not a one- or two-hot start: bins at probability ~0 would get no
+    // gradient from the depth term.
+    const int64_t N = opt_.depth_bins;
+    const torch::Tensor t = torch::linspace(0.0, 1.0, N, torch::kFloat64);
+    const double sigma = 2.0 / double(N - 1);
+    auto logits = [&](double mu) { return -(t - mu).pow(2) / (2.0 * sigma * sigma); };
+    auto mean = [&](double mu) { return (torch::softmax(logits(mu), 0) * t).sum().item<double>(); };
+    double lo = -1.0, hi = 2.0;  // mean(lo) < 1e-3 <= u <= 1 - 1e-3 < mean(hi)
+    for (int i = 0; i < 100; ++i) {
+      const double mid = 0.5 * (lo + hi);
+      (mean(mid) < u ? lo : hi) = mid;
+    }
+    head_depth_->bias.copy_(logits(0.5 * (lo + hi)).to(head_depth_->bias.dtype()));
+  } else {
+    head_depth_->bias.fill_(std::log(u / (1.0 - u)));
+  }
 }
 
 }  // namespace hsd::model

@@ -2,7 +2,8 @@
 // U-Net encoder with two decoders sharing its skip connections, one for the
 // hyperspectral cube (L channels, added to the residual spectral upsampling of
 // the input, spectral_upsampling.h) and one for depth (a sigmoid output read as
-// normalised inverse depth, mapped back to metres over the configured range).
+// normalised inverse depth, mapped back to metres over the configured range;
+// or, with depth_bins, the soft argmax of logits over bins of it).
 // Inputs whose sides are not multiples of 2^levels are reflect-padded and the
 // outputs cropped back. Every block is conv 3×3 -> norm -> ReLU, twice; down
 // by 2×2 max pooling, up by bilinear ×2 then conv. Built only from ops that
@@ -59,6 +60,11 @@ struct NetOptions {
   // (+L channels): the network sees the answer it corrects. false = the
   // paper's network, which adds its residual to a base it does not see.
   bool base_as_input = false;
+  // The depth head: 0 = one sigmoid output read as normalised inverse depth
+  // (the paper's); N >= 2 = N logits over bins at t_k = k/(N-1) of the
+  // normalised inverse depth, read as their softmax's expectation Σ p_k t_k
+  // (a soft argmax; depth_logits carries them for a classification loss).
+  int64_t depth_bins = 0;
 };
 
 struct NetOutput {
@@ -66,6 +72,7 @@ struct NetOutput {
   torch::Tensor inv_depth;   // [B, 1, H, W] 1/m
   torch::Tensor depth_m;     // [B, 1, H, W] metres
   torch::Tensor depth_unit;  // [B, 1, H, W] the depth head's sigmoid output in [0, 1] (for saturation diagnostics)
+  torch::Tensor depth_logits;  // [B, N, H, W] float32 with depth_bins = N >= 2, else undefined
 };
 
 class HsdNetImpl : public torch::nn::Module {

@@ -13,8 +13,18 @@ torch::Tensor masked_mean(const torch::Tensor& x, const torch::Tensor& m) {
 }
 }  // namespace
 
+torch::Tensor two_hot_depth_targets(const torch::Tensor& inv_true, int64_t bins, double inv_far, double inv_near) {
+  TORCH_CHECK(bins >= 2 && inv_near > inv_far, "two_hot_depth_targets: needs >= 2 bins and inv_near > inv_far");
+  const torch::Tensor s = ((inv_true - inv_far) / (inv_near - inv_far)).clamp(0.0, 1.0) * double(bins - 1);
+  const torch::Tensor a = s.floor().clamp_max(double(bins - 2));  // the lower bin, [B, 1, H, W]
+  const torch::Tensor w = s - a;                                   // the upper bin's share
+  const torch::Tensor k = torch::arange(bins, inv_true.options()).view({1, -1, 1, 1});
+  return (k == a).to(inv_true.scalar_type()) * (1.0 - w) + (k == a + 1).to(inv_true.scalar_type()) * w;
+}
+
 LossTerms reconstruction_loss(const torch::Tensor& hs_pred, const torch::Tensor& hs_true, const torch::Tensor& inv_pred,
-                              const torch::Tensor& inv_true, const LossWeights& w, const torch::Tensor& mask) {
+                              const torch::Tensor& inv_true, const LossWeights& w, const torch::Tensor& mask,
+                              const torch::Tensor& depth_logits) {
   LossTerms t;
   t.hs = masked_mean((hs_pred - hs_true).abs(), mask);
   t.depth = w.depth_in_metres
@@ -33,6 +43,13 @@ LossTerms reconstruction_loss(const torch::Tensor& hs_pred, const torch::Tensor&
   }
   t.tv = tv;
   t.total = w.alpha * t.hs + w.beta * t.depth + w.gamma * t.tv;
+  if (depth_logits.defined() && w.ce > 0.0) {
+    const torch::Tensor q = two_hot_depth_targets(inv_true.detach(), depth_logits.size(1), w.inv_far, w.inv_near);
+    t.ce = masked_mean(-(q * torch::log_softmax(depth_logits, 1)).sum(1, /*keepdim=*/true), mask);
+    t.total = t.total + w.ce * t.ce;
+  } else {
+    t.ce = torch::zeros({}, inv_pred.options());
+  }
   return t;
 }
 

@@ -15,14 +15,25 @@ namespace hsd::train {
 struct LossWeights {
   double alpha = 1.0, beta = 1e-2, gamma = 1e-2;
   bool depth_in_metres = false;  // the depth term on Z (m) instead of 1/Z (1/m)
+  // The bins head (model.depth_bins): + ce · mean_pixels(−Σ_k q_k log p_k),
+  // q the two-hot target of the true normalised inverse depth
+  // u = (1/Z − inv_far)/(inv_near − inv_far), clamped to [0, 1], split
+  // linearly between the bins t_k = k/(N−1) around it.
+  double ce = 0.0;
+  double inv_far = 0.5, inv_near = 2.5;  // 1/m, the head's range (the network's)
 };
 
 struct LossTerms {
-  torch::Tensor total, hs, depth, tv;  // scalars; total carries the gradient
+  torch::Tensor total, hs, depth, tv, ce;  // scalars; total carries the gradient (ce: zero without bins)
 };
+
+// The two-hot targets [B, N, H, W] of inv_true [B, 1, H, W] over N bins (see LossWeights::ce).
+torch::Tensor two_hot_depth_targets(const torch::Tensor& inv_true, int64_t bins, double inv_far, double inv_near);
 
 // hs_pred, hs_true [B, L, H, W]; inv_pred, inv_true [B, 1, H, W] (1/m); mask [B, 1, H, W] or undefined.
 LossTerms reconstruction_loss(const torch::Tensor& hs_pred, const torch::Tensor& hs_true, const torch::Tensor& inv_pred,
-                              const torch::Tensor& inv_true, const LossWeights& w, const torch::Tensor& mask = {});
+                              const torch::Tensor& inv_true, const LossWeights& w, const torch::Tensor& mask = {},
+                              const torch::Tensor& depth_logits = {});
+// depth_logits [B, N, H, W] (the bins head's, NetOutput::depth_logits) or undefined (no cross-entropy term).
 
 }  // namespace hsd::train

@@ -149,6 +149,8 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
   net_->to(device_);
   refresh_preinverse();
   weights_ = {cfg.train.loss_alpha, cfg.train.loss_beta, cfg.train.loss_gamma, cfg.train.depth_loss == DepthLoss::metric_l1};
+  weights_.ce = cfg.train.depth_ce_weight;
+  weights_.inv_far = 1.0 / net_->options().depth_max_m, weights_.inv_near = 1.0 / net_->options().depth_min_m;
   std::vector<torch::optim::OptimizerParamGroup> groups;
   groups.emplace_back(net_->parameters(), std::make_unique<torch::optim::AdamOptions>(cfg.train.lr_net));
   if (!doe_trained_) {
@@ -450,7 +452,8 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   const model::NetOutput out = net_->forward(centre(window), pre_in, base_in);
   timer.lap(&StepProfile::network_forward);
   const LossTerms L =
-      reconstruction_loss(out.hs, centre(batch.radiance), out.inv_depth, 1.0 / centre(batch.depth_m), weights_);
+      reconstruction_loss(out.hs, centre(batch.radiance), out.inv_depth, 1.0 / centre(batch.depth_m), weights_, {},
+                          out.depth_logits);
   const std::vector<double> terms = global_loss_terms(L, step);
   timer.lap(&StepProfile::loss);
   opt_->zero_grad();
@@ -510,7 +513,8 @@ ValStats Trainer::validate() {
     abs_c += (Zc - Z).abs().sum().item<double>();
     se_c += (Zc - Z).pow(2).sum().item<double>();
     sat += ((out.depth_unit < 0.02) | (out.depth_unit > 0.98)).sum().item<double>();
-    loss += reconstruction_loss(out.hs, I, out.inv_depth, 1.0 / Z, weights_).total.item<double>() * double(b);
+    loss += reconstruction_loss(out.hs, I, out.inv_depth, 1.0 / Z, weights_, {}, out.depth_logits).total.item<double>() *
+            double(b);
     se += (out.hs - I).pow(2).sum().item<double>();
     count += double(I.numel());
     abs_z += (out.depth_m - Z).abs().sum().item<double>();

@@ -163,7 +163,9 @@ TEST_CASE("export: a network with the spectral Wiener residual exports with its 
   o.bands = 4, o.base_width = 8, o.levels = 2, o.norm = NormKind::group, o.residual_spectral_wiener = true;
   o.preinverse_layers = GENERATE(0, 2);  // with and without the Wiener pre-inversion as input
   o.base_as_input = GENERATE(false, true);  // model.base_as_input: the spectral Wiener cube is input too
-  INFO("preinverse layers " << o.preinverse_layers << ", base as input " << o.base_as_input);
+  o.depth_bins = GENERATE(0, 5);             // model.depth_bins: the sigmoid head or the bins' soft argmax
+  INFO("preinverse layers " << o.preinverse_layers << ", base as input " << o.base_as_input << ", depth bins "
+                            << o.depth_bins);
   model::HsdNet net(o, torch::rand({4, 3}));
   net->eval();
   const torch::Tensor a = torch::rand({4, 4});

@@ -147,3 +147,50 @@ TEST_CASE("model.base_as_input: the residual's base is input beside the image, t
   torch::NoGradGuard ng;
   CHECK(torch::allclose(up->forward(image).hs, model::spectral_upsample(w, image), 0.0, 1e-6));
 }
+
+TEST_CASE("model.depth_bins: the bins head reads the softmax's expectation over k/(N-1), starts at the constant, and bad counts are refused naming the key", "[model][depth]") {
+  Config cfg = load_config(test::source_path("configs/base.json"),
+                           {"model.base_width=4", "model.levels=1", "model.norm=group", "model.depth_bins=8"});
+  model::NetOptions o = model::net_options(cfg);
+  REQUIRE(o.depth_bins == 8);
+  torch::manual_seed(11);
+  model::HsdNet net(o, torch::rand({o.bands, 3}));
+  net->eval();
+  torch::NoGradGuard ng;
+  const torch::Tensor image = torch::rand({2, 3, 8, 10});
+  // Random weights: the logits come out, and the depth is their softmax's
+  // expectation mapped onto the head's range in inverse depth.
+  const model::NetOutput r = net->forward(image);
+  REQUIRE(r.depth_logits.defined());
+  REQUIRE(r.depth_logits.sizes() == c10::IntArrayRef{2, 8, 8, 10});
+  const torch::Tensor t = torch::linspace(0.0, 1.0, 8).view({1, -1, 1, 1});
+  const torch::Tensor u = (torch::softmax(r.depth_logits, 1) * t).sum(1, true);
+  const double inv_far = 1.0 / o.depth_max_m, inv_near = 1.0 / o.depth_min_m;
+  CHECK((r.depth_unit - u).abs().max().item<double>() < 1e-6);
+  CHECK((r.inv_depth - (inv_far + u * (inv_near - inv_far))).abs().max().item<double>() < 1e-5);
+  CHECK(r.depth_unit.std().item<double>() > 1e-4);  // not constant: the logits vary over the pixels
+  // At the baselines every pixel's depth is the constant, wherever it falls between two bins.
+  for (double z : {0.55, 0.8, 1.3, 2.2}) {
+    net->start_at_baselines(1.0 / z);
+    const model::NetOutput s = net->forward(image);
+    INFO("constant " << z << " m");
+    CHECK((s.depth_m - z).abs().max().item<double>() < 1e-5 * z);
+  }
+  // The sigmoid head has no logits.
+  model::NetOptions sig = o;
+  sig.depth_bins = 0;
+  model::HsdNet plain(sig, torch::rand({o.bands, 3}));
+  plain->eval();
+  CHECK_FALSE(plain->forward(image).depth_logits.defined());
+  for (const std::vector<std::string>& bad : std::vector<std::vector<std::string>>{
+           {"model.depth_bins=1"}, {"model.depth_bins=-2"}, {"train.depth_ce_weight=0.5"}}) {
+    try {
+      load_config(test::source_path("configs/base.json"), bad);
+      FAIL(bad[0] << " was accepted");
+    } catch (const InputError& e) {
+      const std::string key = bad[0].substr(0, bad[0].find('='));
+      INFO(e.what());
+      CHECK(std::string(e.what()).find(key) != std::string::npos);
+    }
+  }
+}

@@ -87,6 +87,40 @@ TEST_CASE("train: the loss terms and the schedule", "[train]") {
   CHECK(train::lr_factor(50, 100, 0, LrDecay::none, 0.1) == 1.0);
 }
 
+TEST_CASE("train: the depth bins' two-hot targets and cross-entropy follow their formulas", "[train][depth]") {
+  // Targets: two neighbouring bins share the normalised inverse depth linearly,
+  // so they sum to 1 and their expectation over k/(N-1) is the clamped depth.
+  const int64_t N = 6;
+  const double inv_far = 0.5, inv_near = 2.5;
+  const torch::Tensor inv = torch::tensor({0.3, 0.5, 0.9, 1.7, 2.5, 3.0}, torch::kFloat64).view({1, 1, 2, 3});
+  const torch::Tensor q = train::two_hot_depth_targets(inv, N, inv_far, inv_near);
+  REQUIRE(q.sizes() == c10::IntArrayRef{1, N, 2, 3});
+  CHECK((q.sum(1) - 1.0).abs().max().item<double>() < 1e-12);
+  CHECK((q > 0).sum(1).max().item<int64_t>() <= 2);
+  const torch::Tensor t = torch::linspace(0.0, 1.0, N, torch::kFloat64).view({1, -1, 1, 1});
+  const torch::Tensor u = ((inv - inv_far) / (inv_near - inv_far)).clamp(0.0, 1.0);
+  CHECK(((q * t).sum(1, true) - u).abs().max().item<double>() < 1e-12);
+  // 0.9 1/m is at u = 0.2, s = 1.0: all of it in bin 1.
+  CHECK(q[0][1][0][2].item<double>() == Approx(1.0));
+  // The loss: + ce · mean(−Σ q log softmax), whose gradient in the logits is (softmax − q)/pixels.
+  torch::manual_seed(4);
+  const torch::Tensor logits = torch::randn({1, N, 2, 3}, torch::kFloat64).requires_grad_(true);
+  const torch::Tensor I = torch::rand({1, 2, 2, 3}, torch::kFloat64);
+  train::LossWeights w{1.0, 0.1, 0.0};
+  w.ce = 0.3, w.inv_far = inv_far, w.inv_near = inv_near;
+  const auto L = train::reconstruction_loss(I, I, inv, inv, w, {}, logits);
+  const torch::Tensor ce = (-(q * torch::log_softmax(logits, 1)).sum(1)).mean();
+  CHECK(L.ce.item<double>() == Approx(ce.item<double>()).epsilon(1e-12));
+  CHECK(L.total.item<double>() == Approx(0.3 * ce.item<double>()).epsilon(1e-12));  // the other terms are 0 here
+  L.total.backward();
+  const torch::Tensor expected = 0.3 * (torch::softmax(logits, 1) - q) / 6.0;
+  CHECK((logits.grad() - expected).abs().max().item<double>() < 1e-12);
+  // Without logits, or at weight 0, the term is 0 and the loss is the paper's.
+  const auto plain = train::reconstruction_loss(I, I, inv, inv + 0.1, {1.0, 0.1, 0.0});
+  CHECK(plain.ce.item<double>() == 0.0);
+  CHECK(plain.total.item<double>() == Approx(0.1 * 0.1).epsilon(1e-9));
+}
+
 TEST_CASE("train: a network handles sizes that are not multiples of its poolings", "[train]") {
   model::NetOptions o;
   o.bands = 5, o.base_width = 4, o.levels = 3;
