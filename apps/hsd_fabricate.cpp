@@ -297,11 +297,13 @@ struct ToleranceBench {
   }
   // (HS PSNR [dB], depth RMSE [m]) on the test split with the scenes imaged
   // through `psf` (undefined: the design's own PSFs, as trained); NaNs without
-  // a network. The pre-inversion keeps the design's PSFs.
+  // a network. The pre-inversion keeps the design's PSFs (with
+  // fabrication.tolerance.calibrated: the surface's, as a calibrated camera).
   std::pair<double, double> network(const torch::Tensor& psf) const {
     if (!trainer) return {std::nan(""), std::nan("")};
     const train::EvalResult r = train::evaluate(*trainer, cfg, "test", scratch,
-                                                psf.defined() ? optics::fixed_psf_provider(psf.to(torch::kFloat32)) : nullptr);
+                                                psf.defined() ? optics::fixed_psf_provider(psf.to(torch::kFloat32)) : nullptr,
+                                                cfg.fabrication.tolerance.calibrated);
     std::filesystem::remove_all(scratch);
     return {r.mean.hs_psnr_db, r.mean.depth_rmse_m};
   }
@@ -437,12 +439,16 @@ Json tolerance(const AppArgs& args, const Config& cfg, const optics::Material& m
   j["reference"] = {{"crlb_aggregate", b.ref_crlb}, {"hs_psnr_db", b.ref_net.first}, {"depth_rmse_m", b.ref_net.second}};
   j["design"] = {{"hs_psnr_db", design_net.first}, {"depth_rmse_m", design_net.second}};
   j["crlb_aggregate_name"] = choice_name(cfg.fisher.aggregate);
+  j["calibrated"] = T.calibrated;
   md += "\n# Tolerance\n\nEach error alone, against the " + std::to_string(K) + "-level design without error (CRLB " +
         format_g(b.ref_crlb, 3) + " layers/bands, " + choice_name(cfg.fisher.aggregate) + ")";
   if (b.with_network())
     md += "; the network through the design's own PSFs: HS PSNR " + format_g(design_net.first) + " dB, depth RMSE " +
           format_g(design_net.second, 3) + " m; through the " + std::to_string(K) + "-level map: " + format_g(b.ref_net.first) +
-          " dB, " + format_g(b.ref_net.second, 3) + " m (test split)";
+          " dB, " + format_g(b.ref_net.second, 3) + " m (test split)" +
+          (T.calibrated ? "; calibrated: the network's pre-inversion, its spectral Wiener filter and the Wiener baselines "
+                          "use each surface's own PSFs"
+                        : "");
   md += ". Surfaces on " + std::to_string(b.s) + "x" + std::to_string(b.s) + " sub-cells per DOE cell.\n\n";
   md += "| error | size | PSF rel. L1 mean | max | centroid shift [px] | CRLB | HS PSNR [dB] | depth RMSE [m] |\n"
         "|---|---|---|---|---|---|---|---|\n";

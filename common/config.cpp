@@ -370,6 +370,7 @@ TrainConfig parse_train(const JsonReader& t) {
   }
   T.fabrication_noise_ramp_steps = int_in(t, "fabrication_noise_ramp_steps", T.fabrication_noise_ramp_steps, 0, 10000000,
                                           " (0 = the full noise from step 0)");
+  T.fabrication_noise_calibrated = t.get_bool("fabrication_noise_calibrated", T.fabrication_noise_calibrated);
   T.loss_alpha = t.get_number("loss_alpha", T.loss_alpha);
   T.loss_beta = t.get_number("loss_beta", T.loss_beta);
   T.loss_gamma = t.get_number("loss_gamma", T.loss_gamma);
@@ -430,6 +431,7 @@ FabricationConfig parse_fabrication(const JsonReader& f) {
     T.subsamples = t->get_int("subsamples", T.subsamples);
     if (T.subsamples < 1 || T.subsamples > 16) t->fail("subsamples", "must be in [1, 16]");
     T.network = t->get_bool("network", T.network);
+    T.calibrated = t->get_bool("calibrated", T.calibrated);
     T.draws = t->get_int("draws", T.draws);
     if (T.draws < 0 || T.draws > 1000) t->fail("draws", "must be in [0, 1000] (0 = off)");
     if (auto n = t->optional_child("draw_scales")) {

@@ -236,6 +236,10 @@ struct TrainConfig {
   // at this step (the draws scaled, so step k's errors are (k / ramp) times the
   // full run's); 0 = the full scales from the first step.
   int64_t fabrication_noise_ramp_steps = 0;
+  // true: under fabrication_noise the network's linear inputs (pre-inversion,
+  // spectral Wiener filter) are built from the perturbed surface's PSFs, as a
+  // camera calibrated after fabrication has them; false: from the design's.
+  bool fabrication_noise_calibrated = false;
 };
 
 // Data-parallel training over several processes (train/distributed.h); who
@@ -260,6 +264,10 @@ struct FabricationToleranceConfig {
   // edges by steps of doe_pitch_m / s (the cells' heights are unchanged).
   int64_t subsamples = 4;
   bool network = true;  // with a checkpoint and its data: HS PSNR and depth RMSE at every size (the test split)
+  // true: the network's linear inputs (pre-inversion, spectral Wiener filter) and the
+  // Wiener baselines use each fabricated surface's PSFs (a camera calibrated after it
+  // was made); false: the design's PSFs, as trained.
+  bool calibrated = false;
   // Random draws of the errors together, drawn as train.fabrication_noise
   // draws them from draw_scales (etch σ 10 %, correlated roughness 20 nm over
   // 16 µm, edge blur σ ~ U(0, 8 µm): configs/quick_fab_robust.json's noise):

@@ -63,14 +63,21 @@ std::string effective_resolution_text(double px) {
 }
 
 EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& split, const std::string& out_dir,
-                    const optics::PsfProvider& camera_psf) {
+                    const optics::PsfProvider& camera_psf, bool calibrated) {
   trainer.net()->eval();
   trainer.refresh_preinverse();
+  torch::Tensor model_psf = camera_psf ? trainer.psf_stack() : torch::Tensor();
+  if (camera_psf && calibrated) {  // the network's linear inputs from the camera's PSFs
+    torch::NoGradGuard no_grad;
+    model_psf = optics::imaging_psf_stack(trainer.psf(), trainer.doe().height().detach(), camera_psf);
+    if (trainer.net()->options().preinverse_layers > 0)
+      trainer.net()->set_preinverse_psf(model::camera_rgb_psfs(model_psf, trainer.sensor().omega));
+    if (trainer.net()->options().residual_spectral_wiener) trainer.net()->set_band_psf(model_psf);
+  }
   auto net = [&](const torch::Tensor& x) {
     const model::NetOutput o = trainer.net()->forward(x);
     return std::make_pair(o.hs, o.depth_m);
   };
-  const torch::Tensor model_psf = camera_psf ? trainer.psf_stack() : torch::Tensor();
   const torch::Tensor model_map = trainer.net()->options().learned_spectral_map
                                       ? trainer.net()->upsampling_weights().detach().cpu()
                                       : torch::Tensor();
@@ -85,6 +92,7 @@ EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& spli
   EvalResult r = evaluate(trainer.psf(), trainer.sensor(), trainer.doe().height().detach(), net, cfg, split, out_dir,
                           trainer.baseline_inv_depth(), camera_psf ? camera_psf : trainer.fixed_psf(), model_psf, model_map,
                           prior ? &*prior : nullptr);
+  if (camera_psf && calibrated) trainer.refresh_preinverse();  // the design's PSFs again
   trainer.net()->train();
   return r;
 }

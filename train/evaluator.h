@@ -82,7 +82,10 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
 // the scenes are imaged through it instead of the trainer's PSFs, while the
 // network (its Wiener pre-inversion) and the Wiener baseline keep the
 // trainer's: a system evaluated through a camera that differs from its model.
+// calibrated = true: the network's pre-inversion and spectral Wiener filter and
+// the Wiener baselines use the camera's PSFs as well (a camera whose PSFs were
+// measured after it was made, hsd_calibrate), with the network's weights as trained.
 EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& split, const std::string& out_dir,
-                    const optics::PsfProvider& camera_psf = nullptr);
+                    const optics::PsfProvider& camera_psf = nullptr, bool calibrated = false);
 
 }  // namespace hsd::train

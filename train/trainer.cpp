@@ -382,12 +382,13 @@ Trainer::StepImage Trainer::render_step(const Batch& batch, int64_t step, optics
   // the camera images through the perturbed surface but deconvolves with the
   // design's PSFs, as a fabricated camera that does not know its errors does
   // (and as hsd_fabricate --tolerance evaluates it): those are a second call
-  // of the provider.
+  // of the provider; with train.fabrication_noise_calibrated it deconvolves
+  // with the perturbed PSFs, as a camera calibrated after fabrication.
   StepImage out;
   if (net_->options().preinverse_layers > 0 || net_->options().residual_spectral_wiener) {
     auto every_psf = [&](const torch::Tensor& hh) { return provider ? provider(hh, all_layers(), all_bands()) : psf_->compute(hh).psf; };
     const torch::Tensor all = every_psf(h);
-    const torch::Tensor known = h.is_same(design) ? all : every_psf(design);
+    const torch::Tensor known = h.is_same(design) || cfg_.train.fabrication_noise_calibrated ? all : every_psf(design);
     if (net_->options().preinverse_layers > 0) out.rgb_psf = model::camera_rgb_psfs(known, sensor_.omega);
     if (net_->options().residual_spectral_wiener)
       out.band_psf = cfg_.train.spectral_wiener_doe_gradient ? known : known.detach();

@@ -239,6 +239,31 @@ TEST_CASE("preinverse: under train.fabrication_noise the camera images through t
   CHECK(std::fabs(loss_noisy - loss_clean) > 1e-6 * std::fabs(loss_clean));
 }
 
+TEST_CASE("preinverse: with train.fabrication_noise_calibrated the step deconvolves with the perturbed PSFs, and without noise it changes nothing",
+          "[train][preinverse][fabrication]") {
+  Config cfg = tiny_wiener();
+  train::Trainer clean(cfg);
+  cfg.train.fabrication_noise_calibrated = true;
+  train::Trainer calibrated_clean(cfg);  // no noise: the perturbed surface is the design
+  cfg.train.fabrication_noise.height_scale_error = 0.3;
+  cfg.train.fabrication_noise.edge_blur_m = 8e-6;
+  train::Trainer calibrated(cfg);
+  cfg.train.fabrication_noise_calibrated = false;
+  train::Trainer uncalibrated(cfg);
+  const int64_t L = int64_t(clean.psf().spec().wavelengths_m.size());
+  const auto bt = tiny_batch(L);
+  clean.refresh_preinverse();
+  const torch::Tensor design = model::camera_rgb_psfs(clean.psf_stack(), clean.sensor().omega);
+  const double l_clean = clean.step(bt, 0).loss, l_cal_clean = calibrated_clean.step(bt, 0).loss;
+  const double l_cal = calibrated.step(bt, 0).loss, l_uncal = uncalibrated.step(bt, 0).loss;
+  CHECK(l_cal_clean == l_clean);
+  // The same draw images both noisy steps; the uncalibrated one deconvolves
+  // with the design's PSFs, the calibrated one with the drawn surface's.
+  CHECK(rel(uncalibrated.net()->preinverse_psf(), design) < 1e-6);
+  CHECK(rel(calibrated.net()->preinverse_psf(), design) > 1e-3);
+  CHECK(std::fabs(l_cal - l_uncal) > 1e-6 * std::fabs(l_uncal));
+}
+
 TEST_CASE("preinverse: a profiled step under train.fabrication_noise gives the DOE the same gradient as an unprofiled one",
           "[train][preinverse][fabrication]") {
   // Profiling cuts the graph at each PSF stack (the perturbed surface's and the

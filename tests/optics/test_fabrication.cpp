@@ -450,5 +450,35 @@ TEST_CASE("train.fabrication_noise: the same run sees other PSFs in training, va
   const test::Run bad = test::run("hsd_train " + cfg + " --set train.fabrication_noise.misalignment_m=1e-06 --out " + (base / "c").string());
   CHECK(bad.code == 2);
   CHECK(bad.err.find("train.fabrication_noise.misalignment_m") != std::string::npos);
+  // A calibrated camera: trained with the pre-inversion built from each draw's
+  // PSFs, then swept with and without fabrication.tolerance.calibrated. The
+  // design without error is the same system either way; under the draws the
+  // network's inputs differ, and so do its scores.
+  const std::string wcfg = cfg + " --set model.preinverse=\"wiener\"" + noise + " --set train.fabrication_noise_calibrated=true";
+  const test::Run w = test::run("hsd_train " + wcfg + " --out " + (base / "w").string());
+  INFO(w.err);
+  REQUIRE(w.code == 0);
+  auto sweep = [&](const std::string& calibrated, const std::string& out) {
+    const test::Run f = test::run("hsd_fabricate " + wcfg + " --doe " + (base / "w/checkpoints/last.pt").string() +
+                                  " --tolerance --set fabrication.tolerance.draws=2 --set fabrication.tolerance.subsamples=2"
+                                  " --set fabrication.tolerance.height_scale_error=[0] --set fabrication.tolerance.roughness_rms_m=[0]"
+                                  " --set fabrication.tolerance.misalignment_m=[0] --set fabrication.tolerance.edge_blur_m=[0]"
+                                  " --set fabrication.tolerance.decentre_m=[0] --set fabrication.tolerance.calibrated=" +
+                                  calibrated + " --out " + (base / out).string());
+    INFO(f.err);
+    REQUIRE(f.code == 0);
+    return Json::parse(read_text_file((base / out / "tolerance.json").string()));
+  };
+  const Json as_trained = sweep("false", "tol_design"), calibrated = sweep("true", "tol_calibrated");
+  CHECK_FALSE(as_trained["calibrated"].get<bool>());
+  CHECK(calibrated["calibrated"].get<bool>());
+  CHECK(calibrated["design"]["hs_psnr_db"].get<double>() == as_trained["design"]["hs_psnr_db"].get<double>());
+  CHECK(calibrated["design"]["depth_rmse_m"].get<double>() == as_trained["design"]["depth_rmse_m"].get<double>());
+  REQUIRE(calibrated["draws"]["rows"].size() == 2);
+  for (size_t d = 0; d < 2; ++d) {
+    INFO("draw " << d);
+    CHECK(calibrated["draws"]["rows"][d]["psf_rel_l1_mean"] == as_trained["draws"]["rows"][d]["psf_rel_l1_mean"]);  // the same surfaces
+    CHECK(calibrated["draws"]["rows"][d]["hs_psnr_db"].get<double>() != as_trained["draws"]["rows"][d]["hs_psnr_db"].get<double>());
+  }
   fs::remove_all(base);
 }
