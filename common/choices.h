@@ -46,7 +46,7 @@ enum class SpectralMap { fixed, learned };
 // train.decay: the learning rate after the warm-up.
 enum class LrDecay { cosine, none };
 // train.depth_loss: the depth term in inverse depth or in metres.
-enum class DepthLoss { inverse_l1, metric_l1 };
+enum class DepthLoss { inverse_l1, metric_l1, metric_l2 };
 // train.precision: the network's training arithmetic ("auto": by the CPU's flags).
 enum class TrainPrecision { float32, bfloat16, automatic };
 // calibration.registration and calibration.background (hsd_calibrate).
@@ -115,8 +115,8 @@ constexpr ChoiceTable<SpectralMap, 2> choice_names(SpectralMap) {
 constexpr ChoiceTable<LrDecay, 2> choice_names(LrDecay) {
   return {{{LrDecay::cosine, "cosine"}, {LrDecay::none, "none"}}};
 }
-constexpr ChoiceTable<DepthLoss, 2> choice_names(DepthLoss) {
-  return {{{DepthLoss::inverse_l1, "inverse_l1"}, {DepthLoss::metric_l1, "metric_l1"}}};
+constexpr ChoiceTable<DepthLoss, 3> choice_names(DepthLoss) {
+  return {{{DepthLoss::inverse_l1, "inverse_l1"}, {DepthLoss::metric_l1, "metric_l1"}, {DepthLoss::metric_l2, "metric_l2"}}};
 }
 constexpr ChoiceTable<TrainPrecision, 3> choice_names(TrainPrecision) {
   return {{{TrainPrecision::float32, "float32"}, {TrainPrecision::bfloat16, "bfloat16"}, {TrainPrecision::automatic, "auto"}}};

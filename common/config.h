@@ -207,8 +207,9 @@ struct TrainConfig {
   // network is taken: the DOE, the optimizer state and the step start afresh.
   std::string init_checkpoint;
   double loss_alpha = 1.0, loss_beta = 1e-2, loss_gamma = 1e-2;  // L1 cube, L1 inverse depth, TV of predicted inverse depth
-  // The depth term's unit: "inverse_l1" (|1/Ẑ − 1/Z|, the paper) or
-  // "metric_l1" (|Ẑ − Z| in metres, the unit the evaluation reports).
+  // The depth term: "inverse_l1" (|1/Ẑ − 1/Z|, the paper), "metric_l1"
+  // (|Ẑ − Z| in metres, the unit the evaluation reports) or "metric_l2"
+  // ((Ẑ − Z)² in m², the evaluation's RMSE squared: train/loss.h).
   DepthLoss depth_loss = DepthLoss::inverse_l1;
   // Weight of the depth bins' cross-entropy against two-hot targets (train/loss.h);
   // > 0 needs model.depth_bins >= 2.

@@ -3,18 +3,27 @@
 // or, with the depth term in metres (train.depth_loss = "metric_l1"),
 //   β·mean|1/D̂ − 1/D| = β·mean|Ẑ − Z|
 // (the evaluation's unit; both are minimised by the same constant, the median,
-// so the constant-depth baseline is the optimum of either).
+// so the constant-depth baseline is the optimum of either), or squared
+// (train.depth_loss = "metric_l2"),
+//   β·mean (Ẑ − Z)²   [m²],
+// the evaluation's RMSE squared. An L1 term is minimised by the median of the
+// depths a prediction cannot tell apart, the same in 1/m and in m (the median
+// is invariant under 1/x), so where the evidence allows both 1 m and 2 m an L1
+// head picks one of them; the squared term is minimised by their mean in
+// metres, the estimate of least RMSE.
 // The total-variation term acts on the prediction (the paper writes ∇D; the
 // gradient of the ground truth is a constant). Means run over valid pixels
 // (mask) when a mask is given.
 #pragma once
 #include <torch/types.h>
 
+#include "common/choices.h"
+
 namespace hsd::train {
 
 struct LossWeights {
   double alpha = 1.0, beta = 1e-2, gamma = 1e-2;
-  bool depth_in_metres = false;  // the depth term on Z (m) instead of 1/Z (1/m)
+  DepthLoss depth_loss = DepthLoss::inverse_l1;  // the depth term (see above)
   // The bins head (model.depth_bins): + ce · mean_pixels(−Σ_k q_k log p_k),
   // q the two-hot target of the true normalised inverse depth
   // u = (1/Z − inv_far)/(inv_near − inv_far), clamped to [0, 1], split

@@ -148,7 +148,7 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
   margin_ = render_margin_px(cfg);
   net_->to(device_);
   refresh_preinverse();
-  weights_ = {cfg.train.loss_alpha, cfg.train.loss_beta, cfg.train.loss_gamma, cfg.train.depth_loss == DepthLoss::metric_l1};
+  weights_ = {cfg.train.loss_alpha, cfg.train.loss_beta, cfg.train.loss_gamma, cfg.train.depth_loss};
   weights_.ce = cfg.train.depth_ce_weight;
   weights_.inv_far = 1.0 / net_->options().depth_max_m, weights_.inv_near = 1.0 / net_->options().depth_min_m;
   std::vector<torch::optim::OptimizerParamGroup> groups;

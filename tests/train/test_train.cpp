@@ -78,13 +78,38 @@ TEST_CASE("train: the loss terms and the schedule", "[train]") {
   CHECK(t.tv.item<double>() == Approx(2.0 * 4 / 12));              // 4 of 12 horizontal pairs jump by 2
   CHECK(t.total.item<double>() == Approx(0.5 + 0.1 + 0.01 * 2.0 / 3.0));
   // In metres: inverse depth 3 (1/m) is 1/3 m against 1 m, so half the pixels are off by 2/3 m.
-  const auto m = train::reconstruction_loss(I + 0.5, I, Dp, D, {1.0, 0.1, 0.01, true});
+  const auto m = train::reconstruction_loss(I + 0.5, I, Dp, D, {1.0, 0.1, 0.01, DepthLoss::metric_l1});
   CHECK(m.depth.item<double>() == Approx(1.0 / 3.0));
   CHECK(m.tv.item<double>() == Approx(t.tv.item<double>()));  // the TV term stays on inverse depth
+  // Squared, in m²: half the pixels off by (2/3)² m².
+  const auto q = train::reconstruction_loss(I + 0.5, I, Dp, D, {1.0, 0.1, 0.01, DepthLoss::metric_l2});
+  CHECK(q.depth.item<double>() == Approx(0.5 * 4.0 / 9.0));
+  CHECK(q.total.item<double>() == Approx(0.5 + 0.1 * 2.0 / 9.0 + 0.01 * 2.0 / 3.0));
   CHECK(train::lr_factor(0, 100, 10, LrDecay::cosine, 0.1) == Approx(0.1));
   CHECK(train::lr_factor(9, 100, 10, LrDecay::cosine, 0.1) == Approx(1.0));
   CHECK(train::lr_factor(99, 100, 10, LrDecay::cosine, 0.1) == Approx(0.1));
   CHECK(train::lr_factor(50, 100, 0, LrDecay::none, 0.1) == 1.0);
+}
+
+TEST_CASE("train: a constant prediction minimises the squared metric depth term at the mean depth, the L1 terms at the median", "[train][depth]") {
+  // Half the pixels at 1 m, half at 2 m; one constant inverse depth c predicted everywhere.
+  torch::Tensor D = torch::ones({1, 1, 2, 2}, torch::kFloat64);
+  D.narrow(3, 1, 1).fill_(0.5);
+  const torch::Tensor I = torch::zeros({1, 1, 2, 2}, torch::kFloat64);
+  auto grad_at = [&](double c, DepthLoss kind) {
+    torch::Tensor p = torch::full({1, 1, 2, 2}, c, torch::dtype(torch::kFloat64).requires_grad(true));
+    train::reconstruction_loss(I, I, p, D, {1.0, 1.0, 0.0, kind}).total.backward();
+    return p.grad().sum().item<double>();
+  };
+  // metric_l2: d/dc mean (1/c − Z)² = −(2/c²)(1/c − mean Z) vanishes at 1/c = 1.5 m only.
+  CHECK(std::abs(grad_at(1.0 / 1.5, DepthLoss::metric_l2)) < 1e-12);
+  CHECK(grad_at(1.0 / 1.2, DepthLoss::metric_l2) == Approx(-2.0 * 1.44 * (1.2 - 1.5)));
+  CHECK(grad_at(1.0 / 1.8, DepthLoss::metric_l2) == Approx(-2.0 * 3.24 * (1.8 - 1.5)));
+  // The L1 terms are flat between the two depths (every median): zero gradient at 1.2 m and 1.8 m.
+  for (double z : {1.2, 1.8}) {
+    CHECK(std::abs(grad_at(1.0 / z, DepthLoss::inverse_l1)) < 1e-12);
+    CHECK(std::abs(grad_at(1.0 / z, DepthLoss::metric_l1)) < 1e-12);
+  }
 }
 
 TEST_CASE("train: the depth bins' two-hot targets and cross-entropy follow their formulas", "[train][depth]") {
