@@ -360,6 +360,7 @@ TrainConfig parse_train(const JsonReader& t) {
   if (T.clip_grad_norm < 0.0) t.fail("clip_grad_norm", "must be >= 0 (0 = off)");
   T.ema_decay = number_in(t, "ema_decay", T.ema_decay, '[', 0.0, 1.0, ')');
   T.spectral_wiener_doe_gradient = t.get_bool("spectral_wiener_doe_gradient", T.spectral_wiener_doe_gradient);
+  T.preinverse_doe_gradient = t.get_bool("preinverse_doe_gradient", T.preinverse_doe_gradient);
   T.freeze_doe = t.get_bool("freeze_doe", T.freeze_doe);
   T.init_checkpoint = t.get_string("init_checkpoint", T.init_checkpoint);
   if (auto n = t.optional_child("fabrication_noise")) {

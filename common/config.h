@@ -201,6 +201,11 @@ struct TrainConfig {
   // DOE learns through the sensor image alone. That gradient is ~28 % of the
   // quick config's step (docs/benchmarks.md).
   bool spectral_wiener_doe_gradient = true;
+  // model.preinverse = "wiener": whether the DOE learns through the
+  // pre-inversion's filters (their gradient into the layers' RGB PSFs); false:
+  // the filters are the current DOE's, without that gradient (the forward
+  // pass is the same).
+  bool preinverse_doe_gradient = true;
   bool freeze_doe = false;          // fixed-DOE ablations
   // A training checkpoint whose network weights start this run (fine-tuning,
   // e.g. on measured PSFs); "" = the network's own initialisation. Only the

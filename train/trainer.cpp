@@ -389,7 +389,8 @@ Trainer::StepImage Trainer::render_step(const Batch& batch, int64_t step, optics
     auto every_psf = [&](const torch::Tensor& hh) { return provider ? provider(hh, all_layers(), all_bands()) : psf_->compute(hh).psf; };
     const torch::Tensor all = every_psf(h);
     const torch::Tensor known = h.is_same(design) || cfg_.train.fabrication_noise_calibrated ? all : every_psf(design);
-    if (net_->options().preinverse_layers > 0) out.rgb_psf = model::camera_rgb_psfs(known, sensor_.omega);
+    if (net_->options().preinverse_layers > 0)
+      out.rgb_psf = model::camera_rgb_psfs(cfg_.train.preinverse_doe_gradient ? known : known.detach(), sensor_.omega);
     if (net_->options().residual_spectral_wiener)
       out.band_psf = cfg_.train.spectral_wiener_doe_gradient ? known : known.detach();
     provider = optics::fixed_psf_provider(all);
