@@ -66,7 +66,8 @@ EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& spli
                     const optics::PsfProvider& camera_psf, bool calibrated) {
   trainer.net()->eval();
   trainer.refresh_preinverse();
-  torch::Tensor model_psf = camera_psf ? trainer.psf_stack() : torch::Tensor();
+  torch::Tensor model_psf;  // the PSFs the network's inputs and the Wiener baselines use (with a camera_psf)
+  if (camera_psf && !calibrated) model_psf = trainer.psf_stack();
   if (camera_psf && calibrated) {  // the network's linear inputs from the camera's PSFs
     torch::NoGradGuard no_grad;
     model_psf = optics::imaging_psf_stack(trainer.psf(), trainer.doe().height().detach(), camera_psf);

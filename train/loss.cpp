@@ -27,14 +27,11 @@ LossTerms reconstruction_loss(const torch::Tensor& hs_pred, const torch::Tensor&
                               const torch::Tensor& depth_logits) {
   LossTerms t;
   t.hs = masked_mean((hs_pred - hs_true).abs(), mask);
-  switch (w.depth_loss) {
-    case DepthLoss::inverse_l1: t.depth = masked_mean((inv_pred - inv_true).abs(), mask); break;
-    case DepthLoss::metric_l1:
-      t.depth = masked_mean((1.0 / inv_pred.clamp_min(1e-6) - 1.0 / inv_true.clamp_min(1e-6)).abs(), mask);
-      break;
-    case DepthLoss::metric_l2:
-      t.depth = masked_mean((1.0 / inv_pred.clamp_min(1e-6) - 1.0 / inv_true.clamp_min(1e-6)).square(), mask);
-      break;
+  if (w.depth_loss == DepthLoss::inverse_l1) {
+    t.depth = masked_mean((inv_pred - inv_true).abs(), mask);
+  } else {
+    const torch::Tensor dz = 1.0 / inv_pred.clamp_min(1e-6) - 1.0 / inv_true.clamp_min(1e-6);  // Ẑ − Z [m]
+    t.depth = masked_mean(w.depth_loss == DepthLoss::metric_l2 ? dz.square() : dz.abs(), mask);
   }
   // Forward differences along x and y (anisotropic TV), over pairs of valid pixels.
   const int64_t H = inv_pred.size(2), W = inv_pred.size(3);
