@@ -58,6 +58,13 @@ void log_summary(const train::EvalResult& r, const std::string& split) {
                   a.model_base_hs_psnr_db, a.model_base_hs_ssim, a.hs_psnr_db - a.model_base_hs_psnr_db);
     log::info(buf);
   }
+  if (std::isfinite(a.baseline_defocus_depth_rmse_m)) {
+    std::snprintf(buf, sizeof buf,
+                  "the classical depth-from-defocus reader (the layer of least local likelihood, no learning; "
+                  "report.md): depth RMSE %.4f m, MAE %.4f m",
+                  a.baseline_defocus_depth_rmse_m, a.baseline_defocus_depth_mae_m);
+    log::info(buf);
+  }
   if (std::isfinite(a.layer_oracle_depth_rmse_m)) {
     std::snprintf(buf, sizeof buf,
                   "the layer oracle (each pixel at its scene's mean depth in its rendering layer; report.md): depth "

@@ -17,6 +17,7 @@
 #include "data/image_io.h"
 #include "data/manifest.h"
 #include "data/preview.h"
+#include "model/defocus_likelihood.h"
 #include "model/spectral_upsampling.h"
 #include "model/wiener_preinverse.h"
 #include "optics/psf_source.h"
@@ -179,6 +180,11 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
       const DepthErrors dc = depth_errors(constant_depth_map(sc.depth_m, baseline_inv_depth), sc.depth_m, valid);
       m.baseline_constant_depth_rmse_m = dc.rmse_m, m.baseline_constant_depth_mae_m = dc.mae_m;
     }
+    // The classical depth-from-defocus reader on the same image and PSFs as the network's inputs.
+    const torch::Tensor dfd =
+        model::defocus_layer_depth(model::defocus_cost_volume(img.image.cpu(), rgb_psf, kDefocusBaseline), psf.spec().depths_m);  // [1, H, W]
+    const DepthErrors dd = depth_errors(dfd, sc.depth_m, valid);
+    m.baseline_defocus_depth_rmse_m = dd.rmse_m, m.baseline_defocus_depth_mae_m = dd.mae_m;
     const DepthErrors dl = depth_errors(layer_oracle_depth_map(sc.depth_m, valid, psf.spec().depths_m), sc.depth_m, valid);
     m.layer_oracle_depth_rmse_m = dl.rmse_m, m.layer_oracle_depth_mae_m = dl.mae_m;
     for (int64_t w : kOracleWindowsPx)
@@ -262,6 +268,9 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     for (const auto& m : res.scenes) a.model_base_hs_psnr_db += m.model_base_hs_psnr_db / n, a.model_base_hs_ssim += m.model_base_hs_ssim / n;
   }
   a.layer_oracle_depth_rmse_m = a.layer_oracle_depth_mae_m = 0.0;
+  a.baseline_defocus_depth_rmse_m = a.baseline_defocus_depth_mae_m = 0.0;
+  for (const auto& m : res.scenes)
+    a.baseline_defocus_depth_rmse_m += m.baseline_defocus_depth_rmse_m / n, a.baseline_defocus_depth_mae_m += m.baseline_defocus_depth_mae_m / n;
   for (const auto& m : res.scenes)
     a.layer_oracle_depth_rmse_m += m.layer_oracle_depth_rmse_m / n, a.layer_oracle_depth_mae_m += m.layer_oracle_depth_mae_m / n;
   a.oracle_depth_rmse_m.assign(kOracleWindowsPx.size(), 0.0);
@@ -303,6 +312,8 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     for (size_t k = 0; k < m.oracle_depth_rmse_m.size(); ++k) o[std::to_string(kOracleWindowsPx[k])] = m.oracle_depth_rmse_m[k];
     j["reference_oracle_depth_rmse_m"] = o;
     j["reference_layer_oracle_depth_rmse_m"] = m.layer_oracle_depth_rmse_m;
+    j["baseline_defocus_depth_rmse_m"] = m.baseline_defocus_depth_rmse_m;
+    j["baseline_defocus_depth_mae_m"] = m.baseline_defocus_depth_mae_m;
     j["reference_layer_oracle_depth_mae_m"] = m.layer_oracle_depth_mae_m;
     if (!std::isnan(m.depth_effective_resolution_px))  // JSON has no infinity: coarser than every window is null
       j["depth_effective_resolution_px"] = std::isfinite(m.depth_effective_resolution_px) ? Json(m.depth_effective_resolution_px) : Json();
@@ -387,6 +398,12 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
                 "scenes: depth RMSE %.4f m, MAE %.4f m; the model is at %.2f x its RMSE.\n",
                 psf.spec().depths_m.size(), a.layer_oracle_depth_rmse_m, a.layer_oracle_depth_mae_m,
                 a.depth_rmse_m / std::max(1e-12, a.layer_oracle_depth_rmse_m));
+  md += buf;
+  std::snprintf(buf, sizeof buf,
+                "\nThe classical depth-from-defocus reader (baseline_defocus_*: each pixel at the rendering layer of "
+                "least local negative log-likelihood of the sensor image under a natural-texture model, "
+                "model/defocus_likelihood.h, no learning), mean over the scenes: depth RMSE %.4f m, MAE %.4f m.\n",
+                a.baseline_defocus_depth_rmse_m, a.baseline_defocus_depth_mae_m);
   md += buf;
   md += "\nPictures: `<scene>_compare.png` (truth | reconstruction | |error| x4 | true depth | predicted depth), "
         "`<scene>_spectra.png`, `colorchecker_spectra.png`, `psf_atlas.png`.\n";

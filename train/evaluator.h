@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "common/config.h"
+#include "model/defocus_likelihood.h"
 #include "model/spectral_wiener.h"
 #include "train/trainer.h"
 
@@ -40,7 +41,15 @@ struct SceneMetrics {
   // The layer oracle (baselines.h, layer_oracle_depth_map) on the same pixels:
   // what knowing each pixel's rendering layer, and nothing else, allows [m].
   double layer_oracle_depth_rmse_m = std::nan(""), layer_oracle_depth_mae_m = std::nan("");
+  // The classical depth-from-defocus reader (kDefocusBaseline) on the same pixels [m].
+  double baseline_defocus_depth_rmse_m = std::nan(""), baseline_defocus_depth_mae_m = std::nan("");
 };
+
+// The classical depth-from-defocus baseline's model (model/defocus_likelihood.h):
+// ρ = 0.3 and a 31-px window, the best of ρ ∈ {1e-4, 1e-3, 1e-2, 3e-2, 0.1,
+// 0.3} and windows {7, 15, 31, 63} px on the validation split of the shipped
+// quick model's seed 0 (docs/learning.md, "A classical reader of the cue").
+inline const model::DefocusModel kDefocusBaseline{0.3, 1.0 / 64, 31};
 
 // The resolution oracle's windows [px] in every evaluation.
 inline const std::vector<int64_t> kOracleWindowsPx{3, 5, 9, 15, 31, 63, 127};

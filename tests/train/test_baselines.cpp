@@ -17,6 +17,7 @@
 #include "data/spectral_moments.h"
 #include "data/synthetic_dataset.h"
 #include "helpers.h"
+#include "model/defocus_likelihood.h"
 #include "model/spectral_upsampling.h"
 #include "model/spectral_wiener.h"
 #include "model/unet.h"
@@ -145,16 +146,22 @@ TEST_CASE("baselines: a network that outputs the baselines scores exactly the ba
         Approx(0.5 * (r.scenes[0].baseline_constant_depth_rmse_m + r.scenes[1].baseline_constant_depth_rmse_m)));
   // The Wiener baseline: a "network" answering with the layers' mean Wiener
   // deconvolution, upsampled, scores exactly it; it is not the upsampling's.
+  // Its depth, the classical depth-from-defocus reader's map, scores exactly
+  // baseline_defocus_*.
   const torch::Tensor rgb_psf = model::camera_rgb_psfs(optics::imaging_psf_stack(sim, h, nullptr), sensor.omega);
   auto wiener = [&](const torch::Tensor& x) {
-    return std::make_pair(train::wiener_upsampling_cube(x, rgb_psf, cfg.model.preinverse_reg, w),
-                          train::constant_depth_map(x.narrow(1, 0, 1), median));
+    return std::make_pair(
+        train::wiener_upsampling_cube(x, rgb_psf, cfg.model.preinverse_reg, w),
+        model::defocus_layer_depth(model::defocus_cost_volume(x, rgb_psf, train::kDefocusBaseline), cfg.optics.depths_m).unsqueeze(1));
   };
   const train::EvalResult rw = train::evaluate(sim, sensor, h, wiener, cfg, "test", (root / "eval_w").string(), median);
   for (const auto& m : rw.scenes) {
     CHECK(m.hs_psnr_db == m.baseline_wiener_hs_psnr_db);
     CHECK(m.hs_ssim == m.baseline_wiener_hs_ssim);
     CHECK(m.baseline_wiener_hs_psnr_db != m.baseline_upsampling_hs_psnr_db);
+    CHECK(m.depth_rmse_m == m.baseline_defocus_depth_rmse_m);
+    CHECK(m.depth_mae_m == m.baseline_defocus_depth_mae_m);
+    CHECK(m.baseline_defocus_depth_rmse_m != m.baseline_constant_depth_rmse_m);
   }
   // A learned spectral map (model.spectral_map = "learned"): a "network"
   // answering with that map on its residual base (here the image) scores
@@ -198,7 +205,8 @@ TEST_CASE("baselines: a network that outputs the baselines scores exactly the ba
   const Json j = Json::parse(std::ifstream(root / "eval" / "metrics.json"));
   CHECK_FALSE(j.contains("model_base_hs_psnr_db"));
   for (const char* k : {"baseline_constant_depth_rmse_m", "baseline_constant_depth_mae_m", "baseline_upsampling_hs_psnr_db",
-                        "baseline_upsampling_hs_ssim", "baseline_wiener_hs_psnr_db", "baseline_wiener_hs_ssim"}) {
+                        "baseline_upsampling_hs_ssim", "baseline_wiener_hs_psnr_db", "baseline_wiener_hs_ssim",
+                        "baseline_defocus_depth_rmse_m", "baseline_defocus_depth_mae_m"}) {
     CHECK(j.contains(k));
     CHECK(j["scenes"][0].contains(k));
   }

@@ -1,0 +1,45 @@
+// Classical depth from defocus: the local likelihood of each depth layer's
+// PSF given the sensor image, a cost volume a reader (or a network) can take
+// the depth from without learning to compare blurs.
+//
+// Image model (the same as optics/depth_distinctness.h's scene cue): in colour
+// channel c a region at layer k is y_c = h_k,c ∗ x_c + n, with x_c a stationary
+// Gaussian texture of power spectrum s·S(f), S(f) ∝ 1/(|f|² + f₀²) (mean 1
+// over the frequencies, f in cycles per pixel), n white noise of variance
+// s·ρ, h_k,c the camera's RGB PSF of the layer (model::camera_rgb_psfs). Then
+// the image's DFT Y_c(f) is Gaussian with variance s·D_k,c(f),
+//   D_k,c(f) = S(f)|H_k,c(f)|² + ρ,
+// and the negative log-likelihood per pixel of n pixels, with the unknown
+// texture scale s set to its maximum-likelihood value (a region's contrast
+// says nothing about its depth), is, up to a constant,
+//   ℓ_k = Σ_c [ log( (1/n) Σ_x |w_k,c(x)|² ) + mean_f log D_k,c(f) ],
+//   w_k,c = F⁻¹[ Y_c / √D_k,c ]   (the image whitened under layer k's model).
+// Localised: the mean of |w|² over a window_px × window_px box around each
+// pixel (Parseval's identity over the box, approximately). The layer of least
+// ℓ_k is the maximum-likelihood depth layer at that pixel.
+// Borders: the image is extended by edge replication to an FFT-friendly size
+// at least H + P − 1, as in wiener_preinverse.h.
+#pragma once
+#include <vector>
+
+#include <torch/types.h>
+
+namespace hsd::model {
+
+struct DefocusModel {
+  double noise_ratio = 0.1;            // ρ: noise variance relative to the texture's (> 0)
+  double corner_cycles_per_px = 1.0 / 64;  // f₀ of the texture spectrum (> 0)
+  int64_t window_px = 15;              // the box the likelihood is pooled over (odd, >= 1)
+};
+
+// image [B, C, H, W] (linear sensor values), rgb_psf [K, C, P, P] (P odd,
+// each slice summing to 1) -> ℓ [B, K, H, W] in nats per pixel (smaller =
+// more likely), float32 (float64 inputs stay float64). Differentiable in the
+// image and the PSFs.
+torch::Tensor defocus_cost_volume(const torch::Tensor& image, const torch::Tensor& rgb_psf, const DefocusModel& m);
+
+// The maximum-likelihood layer per pixel: cost [B, K, H, W] -> depth [B, H, W]
+// [m], each pixel at layer_depths_m[argmin_k ℓ_k] (size K).
+torch::Tensor defocus_layer_depth(const torch::Tensor& cost, const std::vector<double>& layer_depths_m);
+
+}  // namespace hsd::model

@@ -1,0 +1,161 @@
+// The classical depth-from-defocus cost volume (model/defocus_likelihood.h):
+// the log-determinant term against a closed form (a delta PSF and a two-tap
+// box, whose MTFs are 1 and cos²(π f_x)), the texture's scale profiled out,
+// the layer that blurred a texture found, the depth map it reads, bad input,
+// and the network's input with model.defocus_cost.
+#include <catch2/catch.hpp>
+
+#include <torch/torch.h>
+
+#include <cmath>
+
+#include "common/config.h"
+#include "common/error.h"
+#include "common/fft_size.h"
+#include "helpers.h"
+#include "model/defocus_likelihood.h"
+#include "model/unet.h"
+
+using namespace hsd;
+namespace F = torch::nn::functional;
+
+namespace {
+
+// mean over the n_h × n_w DFT grid of log(S(f) m(f) + ρ), S(f) = 1/(|f|² + f₀²)
+// normalised to mean 1, m the MTF² — by loops over the frequencies.
+double mean_log_det(int64_t nh, int64_t nw, double f0, double rho, double (*mtf2)(double fy, double fx)) {
+  auto freq = [](int64_t k, int64_t n) { return double(k < (n + 1) / 2 ? k : k - n) / double(n); };
+  double smean = 0;
+  for (int64_t a = 0; a < nh; ++a)
+    for (int64_t b = 0; b < nw; ++b) smean += 1.0 / (std::pow(freq(a, nh), 2) + std::pow(freq(b, nw), 2) + f0 * f0);
+  smean /= double(nh * nw);
+  double sum = 0;
+  for (int64_t a = 0; a < nh; ++a)
+    for (int64_t b = 0; b < nw; ++b) {
+      const double fy = freq(a, nh), fx = freq(b, nw);
+      const double S = 1.0 / (fy * fy + fx * fx + f0 * f0) / smean;
+      sum += std::log(S * mtf2(fy, fx) + rho);
+    }
+  return sum / double(nh * nw);
+}
+
+// PSFs [2, 1, 3, 3]: layer 0 a delta, layer 1 a horizontal two-tap box (½, ½).
+torch::Tensor delta_and_box() {
+  torch::Tensor p = torch::zeros({2, 1, 3, 3}, torch::kFloat64);
+  p[0][0][1][1] = 1.0;
+  p[1][0][1][1] = 0.5, p[1][0][1][2] = 0.5;
+  return p;
+}
+
+// Gaussian PSFs [K, 1, P, P] of widths sigma_px, each summing to 1.
+torch::Tensor gaussians(const std::vector<double>& sigma_px, int64_t P) {
+  const torch::Tensor t = torch::arange(P, torch::kFloat64) - double(P / 2);
+  std::vector<torch::Tensor> out;
+  for (double s : sigma_px) {
+    const torch::Tensor g = torch::exp(-(t.view({-1, 1}).square() + t.view({1, -1}).square()) / (2 * s * s));
+    out.push_back((g / g.sum()).unsqueeze(0));
+  }
+  return torch::stack(out);
+}
+
+}  // namespace
+
+TEST_CASE("defocus likelihood: a uniform image's costs are its whitened level plus the closed-form log-determinants",
+          "[defocus]") {
+  const int64_t H = 14, W = 19;
+  const model::DefocusModel m{0.05, 1.0 / 16, 5};
+  const int64_t nh = fast_fft_size(H + 2), nw = fast_fft_size(W + 2);
+  const double a = 0.37;
+  const torch::Tensor cost = model::defocus_cost_volume(torch::full({1, 1, H, W}, a, torch::kFloat64), delta_and_box(), m);
+  REQUIRE(cost.sizes() == c10::IntArrayRef{1, 2, H, W});
+  const double ld0 = mean_log_det(nh, nw, m.corner_cycles_per_px, m.noise_ratio, [](double, double) { return 1.0; });
+  const double ld1 = mean_log_det(nh, nw, m.corner_cycles_per_px, m.noise_ratio,
+                                  [](double, double fx) { return std::pow(std::cos(M_PI * fx), 2); });
+  // Only the zero frequency is present, where both MTFs are 1: w = a / √(S(0) + ρ) in both layers.
+  double smean = 0;
+  for (int64_t i = 0; i < nh; ++i)
+    for (int64_t j = 0; j < nw; ++j) {
+      const double fy = double(i < (nh + 1) / 2 ? i : i - nh) / nh, fx = double(j < (nw + 1) / 2 ? j : j - nw) / nw;
+      smean += 1.0 / (fy * fy + fx * fx + m.corner_cycles_per_px * m.corner_cycles_per_px);
+    }
+  const double s0 = 1.0 / (m.corner_cycles_per_px * m.corner_cycles_per_px) / (smean / double(nh * nw));
+  const double level = std::log(a * a / (s0 + m.noise_ratio));
+  CHECK((cost[0][0] - (level + ld0)).abs().max().item<double>() < 1e-9);
+  CHECK((cost[0][1] - (level + ld1)).abs().max().item<double>() < 1e-9);
+  CHECK(ld1 < ld0);  // the box's MTF is below 1: a smaller determinant, so a textureless region prefers the blur
+}
+
+TEST_CASE("defocus likelihood: a brighter copy of the image shifts every layer's cost by the same 2 C log k", "[defocus]") {
+  torch::manual_seed(3);
+  const torch::Tensor y = torch::rand({2, 3, 20, 24}, torch::kFloat64);
+  const torch::Tensor psf = gaussians({0.8, 2.0, 3.5}, 9).expand({3, 3, 9, 9});
+  const model::DefocusModel m{0.01, 1.0 / 64, 7};
+  const torch::Tensor d = model::defocus_cost_volume(4.0 * y, psf, m) - model::defocus_cost_volume(y, psf, m);
+  CHECK((d - 3 * 2 * std::log(4.0)).abs().max().item<double>() < 1e-9);
+}
+
+TEST_CASE("defocus likelihood: the layer that blurred a texture has the least cost, and the depth map reads it",
+          "[defocus]") {
+  torch::manual_seed(11);
+  const int64_t H = 64, W = 64, P = 15;
+  const std::vector<double> sigma{0.6, 1.6, 3.2};
+  const torch::Tensor psf = gaussians(sigma, P);
+  // A texture with a natural image's falloff: white noise smoothed by a 3×3 box, plus a mean level.
+  const torch::Tensor white = torch::randn({1, 1, H + 2 * P, W + 2 * P}, torch::kFloat64);
+  const torch::Tensor tex = 1.0 + 0.3 * F::avg_pool2d(white, F::AvgPool2dFuncOptions(3).stride(1).padding(1));
+  const model::DefocusModel m{1e-3, 1.0 / 64, 15};
+  const std::vector<double> depths{0.5, 1.0, 2.0};
+  for (size_t k = 0; k < sigma.size(); ++k) {
+    // Blur the wider texture (a linear convolution), keep the middle H × W, add read noise.
+    const torch::Tensor img = F::conv2d(tex, psf[int64_t(k)].unsqueeze(0).flip({-2, -1})).narrow(2, P / 2, H).narrow(3, P / 2, W) +
+                              1e-4 * torch::randn({1, 1, H, W}, torch::kFloat64);
+    const torch::Tensor cost = model::defocus_cost_volume(img, psf, m);
+    const torch::Tensor right = (cost.argmin(1) == int64_t(k)).to(torch::kFloat64);
+    INFO("layer " << k << " (sigma " << sigma[k] << " px)");
+    // Away from the border, where the window sees only the image (not its edge-replicated extension).
+    const int64_t e = P / 2 + m.window_px / 2;
+    CHECK(right.narrow(1, e, H - 2 * e).narrow(2, e, W - 2 * e).mean().item<double>() > 0.95);
+    CHECK(right.mean().item<double>() > 0.8);
+    const torch::Tensor z = model::defocus_layer_depth(cost, depths);
+    REQUIRE(z.sizes() == c10::IntArrayRef{1, H, W});
+    CHECK(((z - depths[k]).abs() < 1e-12).to(torch::kFloat64).mean().item<double>() == Approx(right.mean().item<double>()));
+  }
+}
+
+TEST_CASE("defocus likelihood: bad shapes and parameters are input errors", "[defocus]") {
+  const torch::Tensor img = torch::rand({1, 3, 16, 16});
+  const torch::Tensor psf = gaussians({1.0, 2.0}, 5).expand({2, 3, 5, 5}).to(torch::kFloat32);
+  CHECK_THROWS_AS(model::defocus_cost_volume(img, psf.narrow(1, 0, 2), {}), InputError);  // 2 channels for 3
+  CHECK_THROWS_AS(model::defocus_cost_volume(img, torch::rand({2, 3, 4, 4}), {}), InputError);  // even PSF
+  CHECK_THROWS_AS(model::defocus_cost_volume(img, psf, model::DefocusModel{0.0, 1.0 / 64, 15}), InputError);
+  CHECK_THROWS_AS(model::defocus_cost_volume(img, psf, model::DefocusModel{0.1, 1.0 / 64, 14}), InputError);
+  CHECK_THROWS_AS(model::defocus_layer_depth(torch::rand({1, 2, 4, 4}), {0.5, 1.0, 2.0}), InputError);
+  CHECK(torch::isfinite(model::defocus_cost_volume(torch::zeros({1, 3, 16, 16}), psf, {})).all().item<bool>());
+}
+
+TEST_CASE("defocus likelihood: model.defocus_cost puts the K-layer cost volume beside the network's inputs", "[defocus]") {
+  torch::manual_seed(4);
+  model::NetOptions o;
+  o.bands = 5, o.base_width = 8, o.levels = 2, o.norm = NormKind::group, o.preinverse_layers = 2, o.defocus_cost = true;
+  model::HsdNet net(o, torch::rand({5, 3}));
+  net->eval();
+  net->set_preinverse_psf(gaussians({1.0, 2.5}, 7).expand({2, 3, 7, 7}).to(torch::kFloat32).contiguous());
+  torch::NoGradGuard ng;
+  const torch::Tensor x = torch::rand({1, 3, 20, 20});
+  const model::NetOutput a = net->forward(x);
+  CHECK(a.hs.sizes() == c10::IntArrayRef{1, 5, 20, 20});
+  // The first block takes 3 (image) + 6 (pre-inversion) + 2 (cost) channels.
+  bool found = false;
+  for (const auto& p : net->named_parameters())
+    if (p.key().rfind("down0.", 0) == 0 && p.value().dim() == 4) {
+      CHECK(p.value().size(1) == 11);
+      found = true;
+      break;
+    }
+  CHECK(found);
+  model::NetOptions bad = o;
+  bad.preinverse_layers = 0;
+  CHECK_THROWS(model::HsdNet(bad, torch::rand({5, 3})));
+  CHECK_THROWS_WITH(load_config(test::source_path("configs/tiny.json"), {"model.defocus_cost=true"}),
+                    Catch::Contains("defocus_cost"));
+}
