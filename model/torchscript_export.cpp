@@ -175,6 +175,8 @@ void define_spectral_wiener(torch::jit::Module& m, HsdNet& net) {
 // forward(image) -> (hs, depth): HsdNetImpl::forward (unet.cpp) as TorchScript
 // source, for the network's levels, normalisation and residual.
 std::string forward_source(const NetOptions& opt) {
+  if (opt.defocus_cost)
+    throw InputError("export: model.defocus_cost (an experimental input) has no TorchScript form; train without it to export");
   const int64_t L = opt.levels, mult = int64_t(1) << L;
   const bool pre = opt.preinverse_layers > 0;
   std::ostringstream o;

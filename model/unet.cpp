@@ -7,6 +7,7 @@
 #include "model/sync_batch_norm.h"
 #include "model/spectral_wiener.h"
 #include "model/wiener_preinverse.h"
+#include "model/defocus_likelihood.h"
 
 namespace hsd::model {
 
@@ -58,6 +59,7 @@ HsdNetImpl::HsdNetImpl(const NetOptions& options, const torch::Tensor& upsamplin
               "preinverse_layers must be >= 0 and preinverse_reg > 0");
   TORCH_CHECK(!opt_.residual_preinverse || opt_.preinverse_layers > 0,
               "residual_preinverse needs the pre-inversion (preinverse_layers > 0)");
+  TORCH_CHECK(!opt_.defocus_cost || opt_.preinverse_layers > 0, "defocus_cost needs the pre-inversion (preinverse_layers > 0)");
   TORCH_CHECK(!(opt_.residual_preinverse && opt_.residual_spectral_wiener),
               "the residual's base is the pre-inversion or the spectral Wiener cube, not both");
   TORCH_CHECK(upsampling_weights.dim() == 2 && upsampling_weights.size(0) == opt_.bands &&
@@ -68,7 +70,8 @@ HsdNetImpl::HsdNetImpl(const NetOptions& options, const torch::Tensor& upsamplin
   for (int64_t l = 0; l < opt_.levels; ++l)
     down_.push_back(register_module(
         "down" + std::to_string(l),
-        block(l == 0 ? opt_.in_channels * (1 + opt_.preinverse_layers) + (opt_.base_as_input ? opt_.bands : 0)
+        block(l == 0 ? opt_.in_channels * (1 + opt_.preinverse_layers) + (opt_.base_as_input ? opt_.bands : 0) +
+                         (opt_.defocus_cost ? opt_.preinverse_layers : 0)
                      : width[size_t(l - 1)],
               width[size_t(l)])));
   bottom_ = register_module("bottom", block(width[size_t(opt_.levels - 1)], width[size_t(opt_.levels)]));
@@ -153,6 +156,10 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& p
                     p.size(2) == H && p.size(3) == W,
                 "pre-inversion input must be [B, ", opt_.in_channels * opt_.preinverse_layers, ", H, W], got ", p.sizes());
     x = torch::cat({image, p}, 1);
+    if (opt_.defocus_cost) {
+      const torch::Tensor cost = defocus_cost_volume(image.detach(), preinverse_psf_.detach(), DefocusModel());
+      x = torch::cat({x, (cost - cost.mean(1, true)).to(image.scalar_type())}, 1);
+    }
     if (opt_.residual_preinverse)
       base = preinverse_layer_mean(p, opt_.preinverse_layers).to(image.scalar_type());
   }

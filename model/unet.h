@@ -60,6 +60,11 @@ struct NetOptions {
   // (+L channels): the network sees the answer it corrects. false = the
   // paper's network, which adds its residual to a base it does not see.
   bool base_as_input = false;
+  // true (needs preinverse_layers > 0): the classical depth-from-defocus cost
+  // volume of the image with the pre-inversion's PSFs (defocus_likelihood.h,
+  // its default model; the PSFs' gradient cut), less its mean over the K
+  // layers, is also input to the first block (+K channels).
+  bool defocus_cost = false;
   // The depth head: 0 = one sigmoid output read as normalised inverse depth
   // (the paper's); N >= 2 = N logits over bins at t_k = k/(N-1) of the
   // normalised inverse depth, read as their softmax's expectation Σ p_k t_k
