@@ -65,6 +65,14 @@ void log_summary(const train::EvalResult& r, const std::string& split) {
                   a.baseline_defocus_depth_rmse_m, a.baseline_defocus_depth_mae_m);
     log::info(buf);
   }
+  if (std::isfinite(a.baseline_spectral_defocus_depth_rmse_m)) {
+    std::snprintf(buf, sizeof buf,
+                  "the same reader with the spectral prior (colour and depth read together, no learning): depth RMSE "
+                  "%.4f m, MAE %.4f m; the model's depth RMSE is %.2f x its",
+                  a.baseline_spectral_defocus_depth_rmse_m, a.baseline_spectral_defocus_depth_mae_m,
+                  a.depth_rmse_m / std::max(1e-12, a.baseline_spectral_defocus_depth_rmse_m));
+    log::info(buf);
+  }
   if (std::isfinite(a.layer_oracle_depth_rmse_m)) {
     std::snprintf(buf, sizeof buf,
                   "the layer oracle (each pixel at its scene's mean depth in its rendering layer; report.md): depth "

@@ -59,6 +59,68 @@ torch::Tensor defocus_cost_volume(const torch::Tensor& image, const torch::Tenso
   return cost.sum(2);
 }
 
+torch::Tensor spectral_defocus_cost_volume(const torch::Tensor& image, const torch::Tensor& psf, const torch::Tensor& omega,
+                                           const SpectralPrior& prior, int64_t window_px) {
+  if (image.dim() != 4 || image.size(1) != 3 || psf.dim() != 4 || psf.size(2) != psf.size(3) || psf.size(2) % 2 == 0 ||
+      omega.dim() != 2 || omega.size(0) != 3 || omega.size(1) != psf.size(0))
+    throw InputError("spectral_defocus_cost_volume: image must be [B, 3, H, W], psf [L, K, P, P] with P odd and omega [3, L], got " +
+                     c10::str(image.sizes()) + ", " + c10::str(psf.sizes()) + " and " + c10::str(omega.sizes()));
+  const int64_t L = psf.size(0), K = psf.size(1), P = psf.size(2), r = P / 2;
+  if (!prior.mean.defined() || !prior.covariance.defined() || prior.mean.numel() != L ||
+      prior.covariance.sizes() != torch::IntArrayRef{L, L} || !(prior.noise_var > 0))
+    throw InputError("spectral_defocus_cost_volume: the prior needs a mean [" + std::to_string(L) + "], a covariance [" +
+                     std::to_string(L) + ", " + std::to_string(L) + "] and a noise variance > 0");
+  if (window_px < 1 || window_px % 2 == 0) throw InputError("spectral_defocus_cost_volume: the window must be odd and >= 1");
+  torch::NoGradGuard no_grad;
+  const int64_t B = image.size(0), H = image.size(2), W = image.size(3);
+  const int64_t nh = fast_fft_size(H + 2 * r), nw = fast_fft_size(W + 2 * r), nf = nw / 2 + 1, F_ = nh * nf;
+  const auto dtype = image.scalar_type() == torch::kFloat64 ? torch::kFloat64 : torch::kFloat32;
+  const auto f64 = torch::TensorOptions().dtype(torch::kFloat64).device(image.device());
+  const torch::Tensor Om = omega.to(f64), mu = prior.mean.to(f64).reshape({L});
+  // Σ = V Vᵀ, so H Σ Hᴴ = Q Qᴴ with Q = Ω diag(K) V [3, R] (spectral_wiener_factor's rows Ω_cλ V_λj).
+  const torch::Tensor Vq = spectral_wiener_factor(Om, prior.covariance.to(f64));  // [3R, L]
+  const int64_t R = Vq.size(0) / 3;
+  // Band OTFs with the PSF's centre at (0, 0): [L, K, F].
+  torch::Tensor k = F::pad(psf.to(f64), F::PadFuncOptions({0, nw - P, 0, nh - P}));
+  k = torch::roll(k, {-r, -r}, {2, 3});
+  const torch::Tensor Kf = torch::fft::rfft2(k).reshape({L, K, F_});
+  const torch::Tensor S = spectral_wiener_psd(nh, nw, prior.psd_exponent, image.device());  // [F]
+  const double s2 = prior.noise_var;
+  // Full-grid means from the real half: its columns 1 .. ceil(nw/2) − 1 stand for two.
+  torch::Tensor wcol = torch::full({nf}, 2.0, f64);
+  wcol[0] = 1.0;
+  if (nw % 2 == 0) wcol[nf - 1] = 1.0;
+  const torch::Tensor wf = wcol.repeat({nh}) / double(nh * nw);  // [F]
+  torch::Tensor y = image.to(f64) - torch::matmul(Om, mu).view({1, 3, 1, 1});
+  y = F::pad(y, F::PadFuncOptions({r, nw - W - r, r, nh - H - r}).mode(torch::kReplicate));
+  const torch::Tensor Y = torch::fft::rfft2(y).reshape({B, 3, F_});
+  const torch::Tensor Y0 = Y.select(1, 0), Y1 = Y.select(1, 1), Y2 = Y.select(1, 2);
+  const int64_t h = window_px / 2, m = std::min(r, h);
+  std::vector<torch::Tensor> costs;
+  for (int64_t z = 0; z < K; ++z) {  // one layer at a time: Q is [3, R, F]
+    const torch::Tensor kc = torch::view_as_real(Kf.select(1, z).contiguous()).reshape({L, F_ * 2});
+    const torch::Tensor q = torch::view_as_complex(torch::matmul(Vq, kc).view({3, R, F_, 2}));
+    auto sq = [&](int64_t c) { return torch::real(q[c] * q[c].conj()).sum(0); };
+    auto cross = [&](int64_t c, int64_t d) { return (q[c] * q[d].conj()).sum(0); };  // M_cd / S
+    // M = S Q Qᴴ + σ² I = L Lᴴ, Cholesky by hand per frequency (lower; diagonals real and > 0).
+    const torch::Tensor m00 = S * sq(0) + s2, m11 = S * sq(1) + s2, m22 = S * sq(2) + s2;
+    const torch::Tensor m10 = S * cross(1, 0), m20 = S * cross(2, 0), m21 = S * cross(2, 1);
+    const torch::Tensor l00 = m00.sqrt();
+    const torch::Tensor l10 = m10 / l00, l20 = m20 / l00;
+    const torch::Tensor l11 = (m11 - torch::real(l10 * l10.conj())).clamp_min(1e-300).sqrt();
+    const torch::Tensor l21 = (m21 - l20 * l10.conj()) / l11;
+    const torch::Tensor l22 = (m22 - torch::real(l20 * l20.conj()) - torch::real(l21 * l21.conj())).clamp_min(1e-300).sqrt();
+    const double logdet = (2.0 * (l00.log() + l11.log() + l22.log()) * wf).sum().item<double>();
+    // Whitened by L⁻¹ (forward substitution): |L⁻¹ Y|² = Yᴴ M⁻¹ Y at every frequency.
+    const torch::Tensor w0 = Y0 / l00, w1 = (Y1 - l10 * w0) / l11, w2 = (Y2 - l20 * w0 - l21 * w1) / l22;
+    const torch::Tensor w = torch::fft::irfft2(torch::stack({w0, w1, w2}, 1).reshape({B, 3, nh, nf}), c10::IntArrayRef{nh, nw});
+    torch::Tensor en = w.narrow(2, r - m, H + 2 * m).narrow(3, r - m, W + 2 * m).square().sum(1, true);  // [B, 1, .., ..]
+    en = F::avg_pool2d(en, F::AvgPool2dFuncOptions(window_px).stride(1).padding(h - m).count_include_pad(false));
+    costs.push_back(3.0 * torch::log(en / 3.0 + 1e-300) + logdet);
+  }
+  return torch::cat(costs, 1).to(dtype);  // [B, K, H, W]
+}
+
 torch::Tensor defocus_layer_depth(const torch::Tensor& cost, const std::vector<double>& layer_depths_m) {
   if (cost.dim() != 4 || cost.size(1) != int64_t(layer_depths_m.size()))
     throw InputError("defocus_layer_depth: cost must be [B, K, H, W] with K = " + std::to_string(layer_depths_m.size()) +

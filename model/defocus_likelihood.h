@@ -24,6 +24,8 @@
 
 #include <torch/types.h>
 
+#include "model/spectral_wiener.h"
+
 namespace hsd::model {
 
 struct DefocusModel {
@@ -37,6 +39,22 @@ struct DefocusModel {
 // more likely), float32 (float64 inputs stay float64). Differentiable in the
 // image and the PSFs.
 torch::Tensor defocus_cost_volume(const torch::Tensor& image, const torch::Tensor& rgb_psf, const DefocusModel& m);
+
+// The same reader with the spectral prior of the spectral Wiener cube
+// (spectral_wiener.h) in place of a grey texture per channel: under layer k
+// the image's DFT is Gaussian with the 3×3 covariance per frequency
+//   M_k(f) = S(f) H_k(f) Σ H_k(f)ᴴ + σ² I,   H_k = Ω diag(K_λ,k(f)) [3, L],
+// (the camera response Ω, the band OTFs K, the training radiance's spectral
+// covariance Σ and mean μ, S the prior's 1/f^α spectrum, σ² its noise), so
+// colour and depth are read together: a surface's spectrum moves each
+// channel's blur (a diffractive lens focuses by wavelength) and the prior says
+// how. With w_k = F⁻¹[L_k⁻¹ (Y − Ω μ δ_f0)] (M_k = L_k L_kᴴ, Cholesky) and one contrast scale profiled
+// out over the box,
+//   ℓ_k = 3 log( (1/3n) Σ_x Σ_c |w_k,c(x)|² ) + mean_f log det M_k(f).
+// image [B, 3, H, W], psf [L, K, P, P] (band PSFs, P odd), omega [3, L],
+// window_px odd -> ℓ [B, K, H, W], float32 (float64 in for float64 out). No gradient.
+torch::Tensor spectral_defocus_cost_volume(const torch::Tensor& image, const torch::Tensor& psf, const torch::Tensor& omega,
+                                           const SpectralPrior& prior, int64_t window_px);
 
 // The maximum-likelihood layer per pixel: cost [B, K, H, W] -> depth [B, H, W]
 // [m], each pixel at layer_depths_m[argmin_k ℓ_k] (size K).

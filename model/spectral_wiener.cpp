@@ -91,11 +91,7 @@ torch::Tensor spectral_wiener_cube(const torch::Tensor& image, const torch::Tens
   const torch::Tensor A00 = torch::cat(a00) * inv_k, A11 = torch::cat(a11) * inv_k, A22 = torch::cat(a22) * inv_k;
   const torch::Tensor A01 = torch::cat(a01) * inv_k, A02 = torch::cat(a02) * inv_k, A12 = torch::cat(a12) * inv_k;
 
-  const torch::Tensor fy = torch::fft::fftfreq(nh, f64).view({-1, 1}), fx = torch::fft::rfftfreq(nw, f64).view({1, -1});
-  torch::Tensor S = torch::pow(torch::sqrt(fy.square() + fx.square()) + 1.0 / double(std::max(nh, nw)), -prior.psd_exponent);
-  S = S.flatten();
-  S = S / S.slice(0, 1).mean();
-  S = torch::cat({S.slice(0, 0, 1) * 1e4, S.slice(0, 1)});
+  const torch::Tensor S = spectral_wiener_psd(nh, nw, prior.psd_exponent, image.device());
 
   // M = S A + σ² I (Hermitian), its inverse by cofactors, elementwise over the
   // frequencies (a batched LAPACK solve of 3×3 systems is ~10× slower).
@@ -129,6 +125,15 @@ torch::Tensor spectral_wiener_cube(const torch::Tensor& image, const torch::Tens
   const torch::Tensor X = (torch::view_as_complex(xr) * S).to(cdt).transpose(0, 1).reshape({B, L, nh, nf});
   const torch::Tensor x = torch::fft::irfft2(X, c10::IntArrayRef{nh, nw});
   return x.narrow(2, r, H).narrow(3, r, W) + mu.to(dtype).view({1, L, 1, 1});
+}
+
+torch::Tensor spectral_wiener_psd(int64_t nh, int64_t nw, double exponent, const torch::Device& device) {
+  const auto f64 = torch::TensorOptions().dtype(torch::kFloat64).device(device);
+  const torch::Tensor fy = torch::fft::fftfreq(nh, f64).view({-1, 1}), fx = torch::fft::rfftfreq(nw, f64).view({1, -1});
+  torch::Tensor S = torch::pow(torch::sqrt(fy.square() + fx.square()) + 1.0 / double(std::max(nh, nw)), -exponent);
+  S = S.flatten();
+  S = S / S.slice(0, 1).mean();
+  return torch::cat({S.slice(0, 0, 1) * 1e4, S.slice(0, 1)});
 }
 
 double mean_noise_variance(double std_min, double std_max, double photons_at_saturation, double y_mean) {

@@ -45,6 +45,11 @@ torch::Tensor spectral_wiener_factor(const torch::Tensor& omega, const torch::Te
 torch::Tensor spectral_wiener_cube(const torch::Tensor& image, const torch::Tensor& psf, const torch::Tensor& omega,
                                    const SpectralPrior& prior);
 
+// The prior's spatial power spectrum S(f) on the real half of an nh × nw DFT
+// grid, flattened [nh·(nw/2+1)], float64: (|f| + 1/max(nh, nw))^−α, mean 1
+// over f ≠ 0, the DC term ×10⁴.
+torch::Tensor spectral_wiener_psd(int64_t nh, int64_t nw, double exponent, const torch::Device& device = torch::kCPU);
+
 // σ² of the sensor model (optics/sensor_noise.h) averaged over its draws, at
 // the mean image level y_mean: E[σ_read²] + y_mean / photons (read σ uniform
 // on [std_min, std_max], or fixed at std_max when std_min < 0; photons 0 = no

@@ -43,6 +43,8 @@ struct SceneMetrics {
   double layer_oracle_depth_rmse_m = std::nan(""), layer_oracle_depth_mae_m = std::nan("");
   // The classical depth-from-defocus reader (kDefocusBaseline) on the same pixels [m].
   double baseline_defocus_depth_rmse_m = std::nan(""), baseline_defocus_depth_mae_m = std::nan("");
+  // The same reader with the spectral prior (kSpectralDefocusWindowPx); NaN when no prior is known.
+  double baseline_spectral_defocus_depth_rmse_m = std::nan(""), baseline_spectral_defocus_depth_mae_m = std::nan("");
 };
 
 // The classical depth-from-defocus baseline's model (model/defocus_likelihood.h):
@@ -50,6 +52,10 @@ struct SceneMetrics {
 // 0.3} and windows {7, 15, 31, 63} px on the validation split of the shipped
 // quick model's seed 0 (docs/learning.md, "A classical reader of the cue").
 inline const model::DefocusModel kDefocusBaseline{0.3, 1.0 / 64, 31};
+// The spectral reader's box (model::spectral_defocus_cost_volume): 31 px, the
+// better of {5, 9, 15, 31} px on the validation splits of the shipped quick
+// model's three seeds (mean 0.83x the constant against 0.84x at 15 px).
+inline constexpr int64_t kSpectralDefocusWindowPx = 31;
 
 // The resolution oracle's windows [px] in every evaluation.
 inline const std::vector<int64_t> kOracleWindowsPx{3, 5, 9, 15, 31, 63, 127};

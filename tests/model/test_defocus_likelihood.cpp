@@ -2,7 +2,9 @@
 // the log-determinant term against a closed form (a delta PSF and a two-tap
 // box, whose MTFs are 1 and cos²(π f_x)), the texture's scale profiled out,
 // the layer that blurred a texture found, the depth map it reads, bad input,
-// and the network's input with model.defocus_cost.
+// and the network's input with model.defocus_cost; the spectral reader
+// against a full-grid DFT with 3x3 solves, its profiled scale, and a scene
+// drawn from its prior read at the layer that imaged it.
 #include <catch2/catch.hpp>
 
 #include <torch/torch.h>
@@ -136,7 +138,7 @@ TEST_CASE("defocus likelihood: bad shapes and parameters are input errors", "[de
 TEST_CASE("defocus likelihood: model.defocus_cost puts the K-layer cost volume beside the network's inputs", "[defocus]") {
   torch::manual_seed(4);
   model::NetOptions o;
-  o.bands = 5, o.base_width = 8, o.levels = 2, o.norm = NormKind::group, o.preinverse_layers = 2, o.defocus_cost = true;
+  o.bands = 5, o.base_width = 8, o.levels = 2, o.norm = NormKind::group, o.preinverse_layers = 2, o.depth_layers = 2, o.defocus_cost = DefocusCost::grey;
   model::HsdNet net(o, torch::rand({5, 3}));
   net->eval();
   net->set_preinverse_psf(gaussians({1.0, 2.5}, 7).expand({2, 3, 7, 7}).to(torch::kFloat32).contiguous());
@@ -156,6 +158,114 @@ TEST_CASE("defocus likelihood: model.defocus_cost puts the K-layer cost volume b
   model::NetOptions bad = o;
   bad.preinverse_layers = 0;
   CHECK_THROWS(model::HsdNet(bad, torch::rand({5, 3})));
-  CHECK_THROWS_WITH(load_config(test::source_path("configs/tiny.json"), {"model.defocus_cost=true"}),
+  CHECK_THROWS_WITH(load_config(test::source_path("configs/tiny.json"), {"model.defocus_cost=\"grey\""}),
                     Catch::Contains("defocus_cost"));
+}
+
+namespace {
+
+// PSFs [L, K, P, P], positive, each slice summing to 1.
+torch::Tensor random_psfs(int64_t L, int64_t K, int64_t P) {
+  const torch::Tensor p = torch::rand({L, K, P, P}, torch::kFloat64) + 0.05;
+  return p / p.sum({2, 3}, true);
+}
+
+model::SpectralPrior random_prior(int64_t L) {
+  const torch::Tensor A = torch::rand({L, L}, torch::kFloat64);
+  return {0.2 + 0.5 * torch::rand({L}, torch::kFloat64), A.matmul(A.t()) * 0.05 + 0.01 * torch::eye(L, torch::kFloat64), 1e-3};
+}
+
+}  // namespace
+
+TEST_CASE("spectral defocus likelihood: the profiled Gaussian likelihood over the whole grid, by a full DFT and 3x3 solves",
+          "[defocus]") {
+  torch::manual_seed(21);
+  const int64_t L = 4, K = 2, P = 3, H = 14, W = 14, N = 16;  // fast_fft_size(H + P - 1) = 16: the image fills the grid
+  REQUIRE(fast_fft_size(H + P - 1) == N);
+  const torch::Tensor psf = random_psfs(L, K, P), omega = torch::rand({3, L}, torch::kFloat64);
+  const model::SpectralPrior prior = random_prior(L);
+  const torch::Tensor img = torch::rand({1, 3, H, W}, torch::kFloat64);
+  // A 33-px box covers the whole 16 x 16 grid from every pixel: one cost per layer.
+  const torch::Tensor cost = model::spectral_defocus_cost_volume(img, psf, omega, prior, 33);
+  REQUIRE(cost.sizes() == c10::IntArrayRef{1, K, H, W});
+  // By hand: the image less Ω μ, edge-replicated by one pixel, its full DFT.
+  const torch::Tensor y = F::pad(img - omega.matmul(prior.mean).view({1, 3, 1, 1}), F::PadFuncOptions({1, 1, 1, 1}).mode(torch::kReplicate))[0];
+  const torch::Tensor Y = torch::fft::fft2(y);  // [3, N, N]
+  // S: (|f| + 1/N)^-2, normalised to mean 1 over the real half grid without DC, DC x 1e4.
+  auto fr = [&](int64_t k) { return double(k < N / 2 ? k : k - N) / N; };
+  double half = 0;
+  for (int64_t a = 0; a < N; ++a)
+    for (int64_t b = 0; b <= N / 2; ++b)
+      if (a || b) half += std::pow(std::hypot(fr(a), double(b) / N) + 1.0 / N, -2.0);
+  half /= double(N * (N / 2 + 1) - 1);
+  for (int64_t k = 0; k < K; ++k) {
+    // OTFs on the full grid with the PSF's centre at (0, 0).
+    torch::Tensor placed = torch::zeros({L, N, N}, torch::kFloat64);
+    for (int64_t i = 0; i < P; ++i)
+      for (int64_t j = 0; j < P; ++j) placed.select(1, (i - 1 + N) % N).select(1, (j - 1 + N) % N).copy_(psf.select(1, k).select(1, i).select(1, j));
+    const torch::Tensor Kf = torch::fft::fft2(placed);  // [L, N, N]
+    double q = 0, ld = 0;
+    for (int64_t a = 0; a < N; ++a)
+      for (int64_t b = 0; b < N; ++b) {
+        double S = std::pow(std::hypot(fr(a), fr(b)) + 1.0 / N, -2.0) / half;
+        if (!a && !b) S = std::pow(1.0 / N, -2.0) / half * 1e4;
+        const torch::Tensor Hm = omega.to(torch::kComplexDouble) * Kf.select(1, a).select(1, b).view({1, L});  // [3, L]
+        const torch::Tensor M = S * Hm.matmul(prior.covariance.to(torch::kComplexDouble)).matmul(Hm.conj().t()) +
+                                prior.noise_var * torch::eye(3, torch::kFloat64).to(torch::kComplexDouble);
+        const torch::Tensor v = Y.select(1, a).select(1, b).view({3, 1});
+        q += torch::real(v.conj().t().matmul(torch::linalg_solve(M, v, true))).item<double>();
+        ld += std::get<1>(torch::linalg_slogdet(M)).item<double>();
+      }
+    // Parseval: Σ_x |w(x)|² = (1/N²) Σ_f |W(f)|², and the box mean divides by N² pixels.
+    const double expect = 3.0 * std::log(q / double(N * N) / double(N * N) / 3.0) + ld / double(N * N);
+    INFO("layer " << k);
+    CHECK((cost[0][k] - expect).abs().max().item<double>() < 1e-8 * std::max(1.0, std::abs(expect)));
+  }
+}
+
+TEST_CASE("spectral defocus likelihood: scaling the image's departure from the prior's mean shifts every layer by 6 log a",
+          "[defocus]") {
+  torch::manual_seed(22);
+  const int64_t L = 5;
+  const torch::Tensor psf = random_psfs(L, 3, 7), omega = torch::rand({3, L}, torch::kFloat64);
+  const model::SpectralPrior prior = random_prior(L);
+  const torch::Tensor mean_img = omega.matmul(prior.mean).view({1, 3, 1, 1});
+  const torch::Tensor img = mean_img + 0.1 * torch::randn({2, 3, 18, 21}, torch::kFloat64);
+  const torch::Tensor d = model::spectral_defocus_cost_volume(mean_img + 2.5 * (img - mean_img), psf, omega, prior, 9) -
+                          model::spectral_defocus_cost_volume(img, psf, omega, prior, 9);
+  CHECK((d - 6.0 * std::log(2.5)).abs().max().item<double>() < 1e-9);
+  CHECK_THROWS_AS(model::spectral_defocus_cost_volume(img, psf, omega, prior, 8), InputError);
+  CHECK_THROWS_AS(model::spectral_defocus_cost_volume(img, psf, omega.narrow(1, 0, 4), prior, 9), InputError);
+}
+
+TEST_CASE("spectral defocus likelihood: a scene drawn from the prior and imaged through one layer's band PSFs is read at that layer",
+          "[defocus]") {
+  torch::manual_seed(23);
+  const int64_t L = 3, H = 64, W = 64, P = 15, E = H + 2 * P;
+  // Chromatic defocus: each band's blur width moves with the layer, in a different direction per band.
+  const std::vector<std::vector<double>> sigma{{0.6, 1.5, 3.0}, {1.5, 0.6, 1.5}, {3.0, 1.5, 0.6}};  // [band][layer]
+  std::vector<torch::Tensor> bands;
+  for (int64_t l = 0; l < L; ++l) bands.push_back(gaussians(sigma[size_t(l)], P).select(1, 0));  // [K, P, P]
+  const torch::Tensor psf = torch::stack(bands);  // [L, K, P, P]
+  const torch::Tensor omega = torch::tensor({0.8, 0.2, 0.0, 0.1, 0.8, 0.1, 0.0, 0.2, 0.8}, torch::kFloat64).view({3, 3});
+  const model::SpectralPrior prior = random_prior(L);
+  // A texture per spectral component, with a natural image's falloff, coloured by Σ^1/2 around μ.
+  const torch::Tensor z = torch::randn({1, L, E, E}, torch::kFloat64);
+  torch::Tensor zt = F::avg_pool2d(z, F::AvgPool2dFuncOptions(3).stride(1).padding(1));
+  zt = zt / zt.std();
+  const auto eig = torch::linalg_eigh(prior.covariance);
+  const torch::Tensor root = std::get<1>(eig).matmul(torch::diag(std::get<0>(eig).clamp_min(0).sqrt()));
+  const torch::Tensor x = prior.mean.view({1, L, 1, 1}) + torch::einsum("lm,bmhw->blhw", {root, zt});
+  for (int64_t k = 0; k < 3; ++k) {
+    // Each band through its layer-k PSF (a linear convolution), then the camera's mixing and read noise.
+    const torch::Tensor kern = psf.select(1, k).unsqueeze(1).flip({-2, -1});  // [L, 1, P, P]
+    const torch::Tensor blurred =
+        F::conv2d(x, kern, F::Conv2dFuncOptions().groups(L)).narrow(2, P / 2, H).narrow(3, P / 2, W);
+    const torch::Tensor img = torch::einsum("cl,blhw->bchw", {omega, blurred}) + 1e-3 * torch::randn({1, 3, H, W}, torch::kFloat64);
+    const torch::Tensor cost = model::spectral_defocus_cost_volume(img, psf, omega, prior, 15);
+    const torch::Tensor right = (cost.argmin(1) == k).to(torch::kFloat64);
+    const int64_t e = P / 2 + 7;
+    INFO("layer " << k);
+    CHECK(right.narrow(1, e, H - 2 * e).narrow(2, e, W - 2 * e).mean().item<double>() > 0.9);
+  }
 }

@@ -189,9 +189,13 @@ TEST_CASE("baselines: a network that outputs the baselines scores exactly the ba
   CHECK((prior.mean - mo.mean.to(torch::kFloat32)).abs().max().item<double>() < 1e-7);
   CHECK(prior.noise_var > cfg.sensor.noise_std * cfg.sensor.noise_std * 0.999);  // read noise at least
   const torch::Tensor band_psf = optics::imaging_psf_stack(sim, h, nullptr);
+  // Its depth, the spectral depth-from-defocus reader's map, scores exactly baseline_spectral_defocus_*.
   auto lmmse = [&](const torch::Tensor& x) {
     return std::make_pair(model::spectral_wiener_cube(x, band_psf, sensor.omega, prior).to(torch::kFloat32),
-                          train::constant_depth_map(x.narrow(1, 0, 1), median));
+                          model::defocus_layer_depth(model::spectral_defocus_cost_volume(x, band_psf, sensor.omega, prior,
+                                                                                         train::kSpectralDefocusWindowPx),
+                                                     cfg.optics.depths_m)
+                              .unsqueeze(1));
   };
   const train::EvalResult rs = train::evaluate(sim, sensor, h, lmmse, cfg, "test", (root / "eval_s").string(), median,
                                                nullptr, {}, {}, &prior);
@@ -199,8 +203,12 @@ TEST_CASE("baselines: a network that outputs the baselines scores exactly the ba
     CHECK(m.hs_psnr_db == m.baseline_spectral_wiener_hs_psnr_db);
     CHECK(m.hs_ssim == m.baseline_spectral_wiener_hs_ssim);
     CHECK(m.baseline_spectral_wiener_hs_psnr_db != m.baseline_wiener_hs_psnr_db);
+    CHECK(m.depth_rmse_m == m.baseline_spectral_defocus_depth_rmse_m);
+    CHECK(m.depth_mae_m == m.baseline_spectral_defocus_depth_mae_m);
   }
+  CHECK(std::isnan(r.mean.baseline_spectral_defocus_depth_rmse_m));
   CHECK(Json::parse(std::ifstream(root / "eval_s" / "metrics.json")).contains("baseline_spectral_wiener_hs_psnr_db"));
+  CHECK(Json::parse(std::ifstream(root / "eval_s" / "metrics.json"))["scenes"][0].contains("baseline_spectral_defocus_depth_rmse_m"));
   // metrics.json carries the contract's baseline keys, mean and per scene.
   const Json j = Json::parse(std::ifstream(root / "eval" / "metrics.json"));
   CHECK_FALSE(j.contains("model_base_hs_psnr_db"));
