@@ -41,6 +41,10 @@ enum class HeadInit { baselines, random };
 enum class Preinverse { none, wiener };
 // model.residual: what the cube head's output is added to.
 enum class ResidualBase { image, preinverse, spectral_wiener };
+// model.defocus_cost: a classical depth-from-defocus cost volume as more input
+// (model/defocus_likelihood.h): none, the grey per-channel reader, or the
+// reader with the spectral Wiener cube's spectral prior.
+enum class DefocusCost { none, grey, spectral };
 // model.spectral_map: the residual's RGB -> bands map fixed (the paper's) or learned.
 enum class SpectralMap { fixed, learned };
 // train.decay: the learning rate after the warm-up.
@@ -108,6 +112,9 @@ constexpr ChoiceTable<Preinverse, 2> choice_names(Preinverse) {
 constexpr ChoiceTable<ResidualBase, 3> choice_names(ResidualBase) {
   return {{{ResidualBase::image, "image"}, {ResidualBase::preinverse, "preinverse"},
            {ResidualBase::spectral_wiener, "spectral_wiener"}}};
+}
+constexpr ChoiceTable<DefocusCost, 3> choice_names(DefocusCost) {
+  return {{{DefocusCost::none, "none"}, {DefocusCost::grey, "grey"}, {DefocusCost::spectral, "spectral"}}};
 }
 constexpr ChoiceTable<SpectralMap, 2> choice_names(SpectralMap) {
   return {{{SpectralMap::fixed, "fixed"}, {SpectralMap::learned, "learned"}}};

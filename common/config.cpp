@@ -336,9 +336,11 @@ ModelConfig parse_model(const JsonReader& m) {
   M.residual = read_choice(m, "residual", M.residual);
   M.spectral_map = read_choice(m, "spectral_map", M.spectral_map);
   M.base_as_input = m.get_bool("base_as_input", M.base_as_input);
-  M.defocus_cost = m.get_bool("defocus_cost", M.defocus_cost);
-  if (M.defocus_cost && M.preinverse != Preinverse::wiener)
-    m.fail("defocus_cost", "needs model.preinverse = \"wiener\" (its PSFs are the pre-inversion's)");
+  M.defocus_cost = read_choice(m, "defocus_cost", M.defocus_cost);
+  if (M.defocus_cost == DefocusCost::grey && M.preinverse != Preinverse::wiener)
+    m.fail("defocus_cost", "\"grey\" needs model.preinverse = \"wiener\" (its PSFs are the pre-inversion's)");
+  if (M.defocus_cost == DefocusCost::spectral && M.residual != ResidualBase::spectral_wiener)
+    m.fail("defocus_cost", "\"spectral\" needs model.residual = \"spectral_wiener\" (its prior and band PSFs)");
   M.depth_bins = int_in(m, "depth_bins", M.depth_bins, 0, 1024, " (0 = a sigmoid head, >= 2 = bins)");
   if (M.depth_bins == 1) m.fail("depth_bins", "must be 0 (a sigmoid head) or >= 2 (bins), got 1");
   if (M.residual == ResidualBase::preinverse && M.preinverse != Preinverse::wiener)

@@ -163,11 +163,12 @@ struct ModelConfig {
   // false: the paper's network. Measured: docs/learning.md, "The network sees
   // the cube it corrects".
   bool base_as_input = false;
-  // true (needs preinverse = "wiener"): the classical depth-from-defocus cost
-  // volume of the image (model/defocus_likelihood.h; K channels, the per-layer
-  // negative log-likelihood less its mean over the layers) is also input to the
-  // network. Measured: docs/learning.md, "A classical reader of the cue".
-  bool defocus_cost = false;
+  // A classical depth-from-defocus cost volume of the image as more input
+  // (model/defocus_likelihood.h; K channels, the per-layer negative
+  // log-likelihood less its mean over the layers): "grey" needs preinverse =
+  // "wiener" (its RGB PSFs), "spectral" needs residual = "spectral_wiener" (its
+  // prior and band PSFs). Measured: docs/learning.md, "A classical reader of the cue".
+  DefocusCost defocus_cost = DefocusCost::none;
   // The depth head: 0 = a sigmoid (the paper's); N >= 2 = a soft argmax over N
   // bins of normalised inverse depth (model/unet.h).
   int64_t depth_bins = 0;

@@ -172,11 +172,69 @@ void define_spectral_wiener(torch::jit::Module& m, HsdNet& net) {
   m.define(w.str());
 }
 
+// defocus_cost(image): spectral_defocus_cost_volume (defocus_likelihood.cpp,
+// line for line) with the spectral Wiener base's band PSFs, prior and factor
+// (define_spectral_wiener's buffers), the network's box.
+void define_spectral_defocus(torch::jit::Module& m) {
+  const int64_t win = kDefocusInputWindowPx;
+  std::ostringstream w;
+  w << "def defocus_cost(self, image: Tensor) -> Tensor:\n"
+    << "        B = image.size(0)\n        H = image.size(2)\n        W = image.size(3)\n"
+    << "        L = self.sw_psf.size(0)\n        K = self.sw_psf.size(1)\n        P = self.sw_psf.size(2)\n        r = P // 2\n"
+    << "        nh = self.fast_fft_size(H + 2 * r)\n        nw = self.fast_fft_size(W + 2 * r)\n"
+    << "        nf = nw // 2 + 1\n        Fn = nh * nf\n"
+    << "        Om = self.p_sw_omega.double()\n        mu = self.p_sw_mean.double()\n"
+    << "        Vq = self.sw_vq\n        R = Vq.size(0) // 3\n"
+    << "        k = torch.constant_pad_nd(self.sw_psf.double(), [0, nw - P, 0, nh - P], 0.0)\n"
+    << "        k = torch.roll(k, [-r, -r], [2, 3])\n"
+    << "        Kf = torch.fft_rfft2(k).reshape([L, K, Fn])\n"
+    << "        iy = torch.arange(nh).double()\n"
+    << "        fy = (torch.where(iy < float((nh + 1) // 2), iy, iy - float(nh)) / float(nh)).view([-1, 1])\n"
+    << "        fx = (torch.arange(nf).double() / float(nw)).view([1, -1])\n"
+    << "        S = torch.pow(torch.sqrt(fy.square() + fx.square()) + 1.0 / float(max(nh, nw)), -" << c10::str(SpectralPrior().psd_exponent) << ")\n"
+    << "        S = S.flatten()\n        S = S / S[1:].mean()\n"
+    << "        S = torch.cat([S[0:1] * 10000.0, S[1:]])\n"
+    << "        s2 = float(self.p_sw_noise_var.item())\n"
+    << "        wcol = S.new_full([nf], 2.0)\n"
+    << "        wcol[0] = 1.0\n"
+    << "        if nw % 2 == 0:\n            wcol[nf - 1] = 1.0\n"
+    << "        wf = wcol.repeat([nh]) / float(nh * nw)\n"
+    << "        y = image.double() - torch.matmul(Om, mu).view([1, 3, 1, 1])\n"
+    << "        y = torch.replication_pad2d(y, [r, nw - W - r, r, nh - H - r])\n"
+    << "        Y = torch.fft_rfft2(y).reshape([B, 3, Fn])\n"
+    << "        Y0 = Y[:, 0]\n        Y1 = Y[:, 1]\n        Y2 = Y[:, 2]\n"
+    << "        h = " << win / 2 << "\n        m = min(r, h)\n"
+    << "        costs: List[Tensor] = []\n"
+    << "        for z in range(K):\n"
+    << "            kc = torch.view_as_real(Kf[:, z].contiguous()).reshape([L, Fn * 2])\n"
+    << "            q = torch.view_as_complex(torch.matmul(Vq, kc).view([3, R, Fn, 2]))\n"
+    << "            m00 = S * torch.real(q[0] * torch.conj(q[0])).sum(0) + s2\n"
+    << "            m11 = S * torch.real(q[1] * torch.conj(q[1])).sum(0) + s2\n"
+    << "            m22 = S * torch.real(q[2] * torch.conj(q[2])).sum(0) + s2\n"
+    << "            m10 = S * (q[1] * torch.conj(q[0])).sum(0)\n"
+    << "            m20 = S * (q[2] * torch.conj(q[0])).sum(0)\n"
+    << "            m21 = S * (q[2] * torch.conj(q[1])).sum(0)\n"
+    << "            l00 = m00.sqrt()\n"
+    << "            l10 = m10 / l00\n            l20 = m20 / l00\n"
+    << "            l11 = (m11 - torch.real(l10 * torch.conj(l10))).clamp_min(1e-300).sqrt()\n"
+    << "            l21 = (m21 - l20 * torch.conj(l10)) / l11\n"
+    << "            l22 = (m22 - torch.real(l20 * torch.conj(l20)) - torch.real(l21 * torch.conj(l21))).clamp_min(1e-300).sqrt()\n"
+    << "            logdet = float((2.0 * (l00.log() + l11.log() + l22.log()) * wf).sum().item())\n"
+    << "            w0 = Y0 / l00\n            w1 = (Y1 - l10 * w0) / l11\n            w2 = (Y2 - l20 * w0 - l21 * w1) / l22\n"
+    << "            wx = torch.fft_irfft2(torch.stack([w0, w1, w2], 1).reshape([B, 3, nh, nf]), [nh, nw])\n"
+    << "            en = wx[:, :, r - m:r + H + m, r - m:r + W + m].square().sum(1, keepdim=True)\n"
+    << "            en = torch.avg_pool2d(en, [" << win << ", " << win << "], [1, 1], [h - m, h - m], False, False)\n"
+    << "            costs.append(3.0 * torch.log(en / 3.0 + 1e-300) + logdet)\n"
+    << "        c = torch.cat(costs, 1).float()\n"
+    << "        return c - c.mean(1, keepdim=True)\n";
+  m.define(w.str());
+}
+
 // forward(image) -> (hs, depth): HsdNetImpl::forward (unet.cpp) as TorchScript
 // source, for the network's levels, normalisation and residual.
 std::string forward_source(const NetOptions& opt) {
-  if (opt.defocus_cost)
-    throw InputError("export: model.defocus_cost (an experimental input) has no TorchScript form; train without it to export");
+  if (opt.defocus_cost == DefocusCost::grey)
+    throw InputError("export: model.defocus_cost = \"grey\" (an experimental input) has no TorchScript form; train without it to export");
   const int64_t L = opt.levels, mult = int64_t(1) << L;
   const bool pre = opt.preinverse_layers > 0;
   std::ostringstream o;
@@ -204,6 +262,7 @@ std::string forward_source(const NetOptions& opt) {
       << "        up = torch.mm(self.p_upsampling_weights.float(), base.permute([1, 0, 2, 3]).reshape([C, B * H * W]))\n"
       << "        cb = up.reshape([Lb, B, H, W]).permute([1, 0, 2, 3])\n";
   if (opt.base_as_input) o << "        x = torch.cat([x, cb.to(x.dtype)], 1)\n";
+  if (opt.defocus_cost == DefocusCost::spectral) o << "        x = torch.cat([x, self.defocus_cost(image.float()).to(x.dtype)], 1)\n";
   o
     << "        if ph > 0 or pw > 0:\n"
     << "            if ph < H and pw < W:\n"
@@ -256,6 +315,7 @@ torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
   if (net->options().preinverse_layers > 0 || net->options().residual_spectral_wiener) define_fast_fft_size(m);
   if (net->options().preinverse_layers > 0) define_preinverse(m, net);
   if (net->options().residual_spectral_wiener) define_spectral_wiener(m, net);
+  if (net->options().defocus_cost == DefocusCost::spectral) define_spectral_defocus(m);
   m.define(forward_source(net->options()));
   m.eval();
   return m;

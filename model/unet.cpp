@@ -59,7 +59,10 @@ HsdNetImpl::HsdNetImpl(const NetOptions& options, const torch::Tensor& upsamplin
               "preinverse_layers must be >= 0 and preinverse_reg > 0");
   TORCH_CHECK(!opt_.residual_preinverse || opt_.preinverse_layers > 0,
               "residual_preinverse needs the pre-inversion (preinverse_layers > 0)");
-  TORCH_CHECK(!opt_.defocus_cost || opt_.preinverse_layers > 0, "defocus_cost needs the pre-inversion (preinverse_layers > 0)");
+  TORCH_CHECK(opt_.defocus_cost != DefocusCost::grey || (opt_.preinverse_layers > 0 && opt_.depth_layers == opt_.preinverse_layers),
+              "defocus_cost grey needs the pre-inversion (preinverse_layers = depth_layers > 0)");
+  TORCH_CHECK(opt_.defocus_cost != DefocusCost::spectral || (opt_.residual_spectral_wiener && opt_.depth_layers > 0),
+              "defocus_cost spectral needs the spectral Wiener base and depth_layers > 0");
   TORCH_CHECK(!(opt_.residual_preinverse && opt_.residual_spectral_wiener),
               "the residual's base is the pre-inversion or the spectral Wiener cube, not both");
   TORCH_CHECK(upsampling_weights.dim() == 2 && upsampling_weights.size(0) == opt_.bands &&
@@ -71,7 +74,7 @@ HsdNetImpl::HsdNetImpl(const NetOptions& options, const torch::Tensor& upsamplin
     down_.push_back(register_module(
         "down" + std::to_string(l),
         block(l == 0 ? opt_.in_channels * (1 + opt_.preinverse_layers) + (opt_.base_as_input ? opt_.bands : 0) +
-                         (opt_.defocus_cost ? opt_.preinverse_layers : 0)
+                         (opt_.defocus_cost != DefocusCost::none ? opt_.depth_layers : 0)
                      : width[size_t(l - 1)],
               width[size_t(l)])));
   bottom_ = register_module("bottom", block(width[size_t(opt_.levels - 1)], width[size_t(opt_.levels)]));
@@ -143,6 +146,23 @@ torch::Tensor HsdNetImpl::preinverse(const torch::Tensor& image) const {
   return wiener_preinverse(image, preinverse_psf_, opt_.preinverse_reg).to(image.scalar_type());
 }
 
+torch::Tensor HsdNetImpl::defocus_input(const torch::Tensor& image) const {
+  torch::NoGradGuard no_grad;
+  torch::Tensor cost;
+  if (opt_.defocus_cost == DefocusCost::grey) {
+    TORCH_CHECK(preinverse_psf_.defined(), "HsdNet: the grey cost volume needs set_preinverse_psf first");
+    cost = defocus_cost_volume(image.detach(), preinverse_psf_.detach(), DefocusModel());
+  } else {
+    TORCH_CHECK(band_psf_.defined() && sw_noise_var_.item<double>() > 0,
+                "HsdNet: the spectral cost volume needs set_band_psf and set_spectral_prior first");
+    TORCH_CHECK(band_psf_.size(1) == opt_.depth_layers, "HsdNet: the band PSFs have ", band_psf_.size(1),
+                " depths, the cost volume ", opt_.depth_layers);
+    const SpectralPrior prior{sw_mean_, sw_cov_, sw_noise_var_.item<double>()};
+    cost = spectral_defocus_cost_volume(image.detach(), band_psf_.detach(), sw_omega_, prior, kDefocusInputWindowPx);
+  }
+  return (cost - cost.mean(1, true)).to(image.scalar_type());
+}
+
 NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& preinverse_in, const torch::Tensor& base_in) {
   TORCH_CHECK(image.dim() == 4 && image.size(1) == opt_.in_channels, "network input must be [B, ", opt_.in_channels,
               ", H, W], got ", image.sizes());
@@ -156,10 +176,7 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& p
                     p.size(2) == H && p.size(3) == W,
                 "pre-inversion input must be [B, ", opt_.in_channels * opt_.preinverse_layers, ", H, W], got ", p.sizes());
     x = torch::cat({image, p}, 1);
-    if (opt_.defocus_cost) {
-      const torch::Tensor cost = defocus_cost_volume(image.detach(), preinverse_psf_.detach(), DefocusModel());
-      x = torch::cat({x, (cost - cost.mean(1, true)).to(image.scalar_type())}, 1);
-    }
+    if (opt_.defocus_cost == DefocusCost::grey) x = torch::cat({x, defocus_input(image)}, 1);
     if (opt_.residual_preinverse)
       base = preinverse_layer_mean(p, opt_.preinverse_layers).to(image.scalar_type());
   }
@@ -174,6 +191,7 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& p
     cube_base = spectral_upsample(weights_, base);
   }
   if (opt_.base_as_input) x = torch::cat({x, cube_base.to(x.scalar_type())}, 1);
+  if (opt_.defocus_cost == DefocusCost::spectral) x = torch::cat({x, defocus_input(image)}, 1);
   if (ph || pw) {  // reflect needs pad < size; replicate always works
     F::PadFuncOptions o({0, pw, 0, ph});
     if (ph < H && pw < W) o.mode(torch::kReflect);

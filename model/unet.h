@@ -31,6 +31,9 @@ namespace hsd::model {
 
 // net_options(cfg) (model/net_options.h) fills these from a config; the
 // defaults here are for a network built by hand.
+// The box [px] of the network's spectral cost-volume input (NetOptions::defocus_cost).
+inline constexpr int64_t kDefocusInputWindowPx = 15;
+
 struct NetOptions {
   int64_t in_channels = 3;
   int64_t bands = 25;              // L
@@ -60,11 +63,16 @@ struct NetOptions {
   // (+L channels): the network sees the answer it corrects. false = the
   // paper's network, which adds its residual to a base it does not see.
   bool base_as_input = false;
-  // true (needs preinverse_layers > 0): the classical depth-from-defocus cost
-  // volume of the image with the pre-inversion's PSFs (defocus_likelihood.h,
-  // its default model; the PSFs' gradient cut), less its mean over the K
-  // layers, is also input to the first block (+K channels).
-  bool defocus_cost = false;
+  // A classical depth-from-defocus cost volume (defocus_likelihood.h, no
+  // gradient into the PSFs), less its mean over the K layers, as K more
+  // channels into the first block: grey = defocus_cost_volume with the
+  // pre-inversion's RGB PSFs (needs preinverse_layers > 0; its default model);
+  // spectral = spectral_defocus_cost_volume with the spectral Wiener base's
+  // prior and band PSFs (needs residual_spectral_wiener; a 15-px box).
+  DefocusCost defocus_cost = DefocusCost::none;
+  // (The spectral cost volume's box: kDefocusInputWindowPx.)
+  // K for the cost volume: the pre-inversion's layers, else the band PSFs' depths (set by net_options).
+  int64_t depth_layers = 0;
   // The depth head: 0 = one sigmoid output read as normalised inverse depth
   // (the paper's); N >= 2 = N logits over bins at t_k = k/(N-1) of the
   // normalised inverse depth, read as their softmax's expectation Σ p_k t_k
@@ -104,6 +112,8 @@ class HsdNetImpl : public torch::nn::Module {
   void set_spectral_prior(const torch::Tensor& mean, const torch::Tensor& covariance, double noise_var,
                           const torch::Tensor& omega);
   void set_band_psf(const torch::Tensor& psf);
+  // The classical cost volume input (NetOptions::defocus_cost): image [B, 3, H, W] -> [B, K, H, W], no gradient.
+  torch::Tensor defocus_input(const torch::Tensor& image) const;
   const torch::Tensor& band_psf() const { return band_psf_; }
   // The prior in the buffers (float32; its psd_exponent the default).
   SpectralPrior spectral_prior() const { return {sw_mean_, sw_cov_, sw_noise_var_.item<double>()}; }

@@ -164,8 +164,10 @@ TEST_CASE("export: a network with the spectral Wiener residual exports with its 
   o.preinverse_layers = GENERATE(0, 2);  // with and without the Wiener pre-inversion as input
   o.base_as_input = GENERATE(false, true);  // model.base_as_input: the spectral Wiener cube is input too
   o.depth_bins = GENERATE(0, 5);             // model.depth_bins: the sigmoid head or the bins' soft argmax
+  o.defocus_cost = GENERATE(DefocusCost::none, DefocusCost::spectral);  // the spectral cost volume as input too
+  o.depth_layers = 2;
   INFO("preinverse layers " << o.preinverse_layers << ", base as input " << o.base_as_input << ", depth bins "
-                            << o.depth_bins);
+                            << o.depth_bins << ", defocus cost " << choice_name(o.defocus_cost));
   model::HsdNet net(o, torch::rand({4, 3}));
   net->eval();
   const torch::Tensor a = torch::rand({4, 4});
