@@ -337,6 +337,9 @@ ModelConfig parse_model(const JsonReader& m) {
   M.spectral_map = read_choice(m, "spectral_map", M.spectral_map);
   M.base_as_input = m.get_bool("base_as_input", M.base_as_input);
   M.defocus_cost = read_choice(m, "defocus_cost", M.defocus_cost);
+  M.fuse_defocus_reader = m.get_bool("fuse_defocus_reader", M.fuse_defocus_reader);
+  if (M.fuse_defocus_reader && M.residual != ResidualBase::spectral_wiener)
+    m.fail("fuse_defocus_reader", "needs model.residual = \"spectral_wiener\" (the reader's prior and band PSFs)");
   if (M.defocus_cost == DefocusCost::grey && M.preinverse != Preinverse::wiener)
     m.fail("defocus_cost", "\"grey\" needs model.preinverse = \"wiener\" (its PSFs are the pre-inversion's)");
   if (M.defocus_cost == DefocusCost::spectral && M.residual != ResidualBase::spectral_wiener)

@@ -169,6 +169,12 @@ struct ModelConfig {
   // "wiener" (its RGB PSFs), "spectral" needs residual = "spectral_wiener" (its
   // prior and band PSFs). Measured: docs/learning.md, "A classical reader of the cue".
   DefocusCost defocus_cost = DefocusCost::none;
+  // true (needs residual = "spectral_wiener"): in evaluation (and in the
+  // exported reconstructor) the depth output is the mean, in metres, of the
+  // network's depth and the spectral depth-from-defocus reader's
+  // (model/defocus_likelihood.h, a 31-px box); training is unchanged.
+  // Measured: docs/learning.md, "A classical reader of the cue".
+  bool fuse_defocus_reader = false;
   // The depth head: 0 = a sigmoid (the paper's); N >= 2 = a soft argmax over N
   // bins of normalised inverse depth (model/unet.h).
   int64_t depth_bins = 0;

@@ -20,6 +20,8 @@ NetOptions net_options(const Config& cfg) {
   o.depth_max_m = 1.0 / std::max(1.0 / far - m, 0.5 / far);
   o.preinverse_layers = cfg.model.preinverse == Preinverse::wiener ? int64_t(d.size()) : 0;
   o.depth_layers = int64_t(d.size());
+  o.fuse_defocus_reader = cfg.model.fuse_defocus_reader;
+  o.layer_depths_m = d;
   o.preinverse_reg = cfg.model.preinverse_reg;
   o.residual_preinverse = cfg.model.residual == ResidualBase::preinverse;
   o.residual_spectral_wiener = cfg.model.residual == ResidualBase::spectral_wiener;

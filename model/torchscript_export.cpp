@@ -176,9 +176,8 @@ void define_spectral_wiener(torch::jit::Module& m, HsdNet& net) {
 // line for line) with the spectral Wiener base's band PSFs, prior and factor
 // (define_spectral_wiener's buffers), the network's box.
 void define_spectral_defocus(torch::jit::Module& m) {
-  const int64_t win = kDefocusInputWindowPx;
   std::ostringstream w;
-  w << "def defocus_cost(self, image: Tensor) -> Tensor:\n"
+  w << "def defocus_cost(self, image: Tensor, win: int) -> Tensor:\n"
     << "        B = image.size(0)\n        H = image.size(2)\n        W = image.size(3)\n"
     << "        L = self.sw_psf.size(0)\n        K = self.sw_psf.size(1)\n        P = self.sw_psf.size(2)\n        r = P // 2\n"
     << "        nh = self.fast_fft_size(H + 2 * r)\n        nw = self.fast_fft_size(W + 2 * r)\n"
@@ -203,7 +202,7 @@ void define_spectral_defocus(torch::jit::Module& m) {
     << "        y = torch.replication_pad2d(y, [r, nw - W - r, r, nh - H - r])\n"
     << "        Y = torch.fft_rfft2(y).reshape([B, 3, Fn])\n"
     << "        Y0 = Y[:, 0]\n        Y1 = Y[:, 1]\n        Y2 = Y[:, 2]\n"
-    << "        h = " << win / 2 << "\n        m = min(r, h)\n"
+    << "        h = win // 2\n        m = min(r, h)\n"
     << "        costs: List[Tensor] = []\n"
     << "        for z in range(K):\n"
     << "            kc = torch.view_as_real(Kf[:, z].contiguous()).reshape([L, Fn * 2])\n"
@@ -223,7 +222,7 @@ void define_spectral_defocus(torch::jit::Module& m) {
     << "            w0 = Y0 / l00\n            w1 = (Y1 - l10 * w0) / l11\n            w2 = (Y2 - l20 * w0 - l21 * w1) / l22\n"
     << "            wx = torch.fft_irfft2(torch.stack([w0, w1, w2], 1).reshape([B, 3, nh, nf]), [nh, nw])\n"
     << "            en = wx[:, :, r - m:r + H + m, r - m:r + W + m].square().sum(1, keepdim=True)\n"
-    << "            en = torch.avg_pool2d(en, [" << win << ", " << win << "], [1, 1], [h - m, h - m], False, False)\n"
+    << "            en = torch.avg_pool2d(en, [win, win], [1, 1], [h - m, h - m], False, False)\n"
     << "            costs.append(3.0 * torch.log(en / 3.0 + 1e-300) + logdet)\n"
     << "        c = torch.cat(costs, 1).float()\n"
     << "        return c - c.mean(1, keepdim=True)\n";
@@ -262,7 +261,8 @@ std::string forward_source(const NetOptions& opt) {
       << "        up = torch.mm(self.p_upsampling_weights.float(), base.permute([1, 0, 2, 3]).reshape([C, B * H * W]))\n"
       << "        cb = up.reshape([Lb, B, H, W]).permute([1, 0, 2, 3])\n";
   if (opt.base_as_input) o << "        x = torch.cat([x, cb.to(x.dtype)], 1)\n";
-  if (opt.defocus_cost == DefocusCost::spectral) o << "        x = torch.cat([x, self.defocus_cost(image.float()).to(x.dtype)], 1)\n";
+  if (opt.defocus_cost == DefocusCost::spectral)
+    o << "        x = torch.cat([x, self.defocus_cost(image.float(), " << kDefocusInputWindowPx << ").to(x.dtype)], 1)\n";
   o
     << "        if ph > 0 or pw > 0:\n"
     << "            if ph < H and pw < W:\n"
@@ -301,8 +301,12 @@ std::string forward_source(const NetOptions& opt) {
   o << "        hs = hs + cb\n"
     << "        inv_far = 1.0 / " << c10::str(opt.depth_max_m) << "\n"
     << "        inv_near = 1.0 / " << c10::str(opt.depth_min_m) << "\n"
-    << "        depth = 1.0 / (inv_far + d * (inv_near - inv_far))\n"
-    << "        return (hs, depth)\n";
+    << "        depth = 1.0 / (inv_far + d * (inv_near - inv_far))\n";
+  if (opt.fuse_defocus_reader)  // the spectral reader's depth, fused in metres (unet.cpp)
+    o << "        idx = torch.argmin(self.defocus_cost(image.float(), " << kDefocusReaderWindowPx << "), 1, True)\n"
+      << "        zr = torch.index_select(self.layer_depths_m, 0, idx.flatten()).view(idx.shape)\n"
+      << "        depth = 0.5 * (depth + zr.float())\n";
+  o << "        return (hs, depth)\n";
   return o.str();
 }
 
@@ -315,7 +319,9 @@ torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
   if (net->options().preinverse_layers > 0 || net->options().residual_spectral_wiener) define_fast_fft_size(m);
   if (net->options().preinverse_layers > 0) define_preinverse(m, net);
   if (net->options().residual_spectral_wiener) define_spectral_wiener(m, net);
-  if (net->options().defocus_cost == DefocusCost::spectral) define_spectral_defocus(m);
+  if (net->options().defocus_cost == DefocusCost::spectral || net->options().fuse_defocus_reader) define_spectral_defocus(m);
+  if (net->options().fuse_defocus_reader)
+    m.register_buffer("layer_depths_m", torch::tensor(net->options().layer_depths_m, torch::kFloat64));
   m.define(forward_source(net->options()));
   m.eval();
   return m;

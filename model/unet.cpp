@@ -63,6 +63,8 @@ HsdNetImpl::HsdNetImpl(const NetOptions& options, const torch::Tensor& upsamplin
               "defocus_cost grey needs the pre-inversion (preinverse_layers = depth_layers > 0)");
   TORCH_CHECK(opt_.defocus_cost != DefocusCost::spectral || (opt_.residual_spectral_wiener && opt_.depth_layers > 0),
               "defocus_cost spectral needs the spectral Wiener base and depth_layers > 0");
+  TORCH_CHECK(!opt_.fuse_defocus_reader || (opt_.residual_spectral_wiener && !opt_.layer_depths_m.empty()),
+              "fuse_defocus_reader needs the spectral Wiener base and layer_depths_m");
   TORCH_CHECK(!(opt_.residual_preinverse && opt_.residual_spectral_wiener),
               "the residual's base is the pre-inversion or the spectral Wiener cube, not both");
   TORCH_CHECK(upsampling_weights.dim() == 2 && upsampling_weights.size(0) == opt_.bands &&
@@ -163,6 +165,18 @@ torch::Tensor HsdNetImpl::defocus_input(const torch::Tensor& image) const {
   return (cost - cost.mean(1, true)).to(image.scalar_type());
 }
 
+torch::Tensor HsdNetImpl::reader_depth(const torch::Tensor& image) const {
+  torch::NoGradGuard no_grad;
+  TORCH_CHECK(band_psf_.defined() && sw_noise_var_.item<double>() > 0,
+              "HsdNet: the reader's depth needs set_band_psf and set_spectral_prior first");
+  TORCH_CHECK(band_psf_.size(1) == int64_t(opt_.layer_depths_m.size()), "HsdNet: the band PSFs have ", band_psf_.size(1),
+              " depths, the layers ", opt_.layer_depths_m.size());
+  const SpectralPrior prior{sw_mean_, sw_cov_, sw_noise_var_.item<double>()};
+  const torch::Tensor cost =
+      spectral_defocus_cost_volume(image.detach(), band_psf_.detach(), sw_omega_, prior, kDefocusReaderWindowPx);
+  return defocus_layer_depth(cost, opt_.layer_depths_m).unsqueeze(1).to(torch::kFloat32);
+}
+
 NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& preinverse_in, const torch::Tensor& base_in) {
   TORCH_CHECK(image.dim() == 4 && image.size(1) == opt_.in_channels, "network input must be [B, ", opt_.in_channels,
               ", H, W], got ", image.sizes());
@@ -240,6 +254,10 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& p
   out.inv_depth = inv_far + d * (inv_near - inv_far);
   out.depth_m = 1.0 / out.inv_depth;
   out.depth_unit = d;
+  if (opt_.fuse_defocus_reader && !is_training()) {
+    out.depth_m = 0.5 * (out.depth_m + reader_depth(image));
+    out.inv_depth = 1.0 / out.depth_m;
+  }
   return out;
 }
 

@@ -33,6 +33,9 @@ namespace hsd::model {
 // defaults here are for a network built by hand.
 // The box [px] of the network's spectral cost-volume input (NetOptions::defocus_cost).
 inline constexpr int64_t kDefocusInputWindowPx = 15;
+// The box [px] of the spectral reader whose depth is fused with the network's
+// (NetOptions::fuse_defocus_reader) and of hsd_eval's spectral reader baseline.
+inline constexpr int64_t kDefocusReaderWindowPx = 31;
 
 struct NetOptions {
   int64_t in_channels = 3;
@@ -73,6 +76,12 @@ struct NetOptions {
   // (The spectral cost volume's box: kDefocusInputWindowPx.)
   // K for the cost volume: the pre-inversion's layers, else the band PSFs' depths (set by net_options).
   int64_t depth_layers = 0;
+  // true (needs residual_spectral_wiener and layer_depths_m): in eval mode the
+  // depth is the mean in metres of the head's and the spectral reader's
+  // (spectral_defocus_cost_volume over kDefocusReaderWindowPx, each pixel at
+  // layer_depths_m of its least cost); training mode is unchanged.
+  bool fuse_defocus_reader = false;
+  std::vector<double> layer_depths_m;  // the rendering layers [m] (optics.depths_m)
   // The depth head: 0 = one sigmoid output read as normalised inverse depth
   // (the paper's); N >= 2 = N logits over bins at t_k = k/(N-1) of the
   // normalised inverse depth, read as their softmax's expectation Σ p_k t_k
@@ -114,6 +123,8 @@ class HsdNetImpl : public torch::nn::Module {
   void set_band_psf(const torch::Tensor& psf);
   // The classical cost volume input (NetOptions::defocus_cost): image [B, 3, H, W] -> [B, K, H, W], no gradient.
   torch::Tensor defocus_input(const torch::Tensor& image) const;
+  // The spectral reader's depth (NetOptions::fuse_defocus_reader): image [B, 3, H, W] -> [B, 1, H, W] metres, no gradient.
+  torch::Tensor reader_depth(const torch::Tensor& image) const;
   const torch::Tensor& band_psf() const { return band_psf_; }
   // The prior in the buffers (float32; its psd_exponent the default).
   SpectralPrior spectral_prior() const { return {sw_mean_, sw_cov_, sw_noise_var_.item<double>()}; }

@@ -55,7 +55,7 @@ inline const model::DefocusModel kDefocusBaseline{0.3, 1.0 / 64, 31};
 // The spectral reader's box (model::spectral_defocus_cost_volume): 31 px, the
 // better of {5, 9, 15, 31} px on the validation splits of the shipped quick
 // model's three seeds (mean 0.83x the constant against 0.84x at 15 px).
-inline constexpr int64_t kSpectralDefocusWindowPx = 31;
+inline constexpr int64_t kSpectralDefocusWindowPx = model::kDefocusReaderWindowPx;
 
 // The resolution oracle's windows [px] in every evaluation.
 inline const std::vector<int64_t> kOracleWindowsPx{3, 5, 9, 15, 31, 63, 127};

@@ -269,3 +269,37 @@ TEST_CASE("spectral defocus likelihood: a scene drawn from the prior and imaged 
     CHECK(right.narrow(1, e, H - 2 * e).narrow(2, e, W - 2 * e).mean().item<double>() > 0.9);
   }
 }
+
+TEST_CASE("defocus likelihood: model.fuse_defocus_reader averages the head's depth with the spectral reader's in eval mode only",
+          "[defocus]") {
+  torch::manual_seed(24);
+  model::NetOptions o;
+  o.bands = 4, o.base_width = 8, o.levels = 2, o.norm = NormKind::group, o.residual_spectral_wiener = true;
+  o.fuse_defocus_reader = true, o.layer_depths_m = {0.5, 2.0}, o.depth_min_m = 0.4, o.depth_max_m = 2.5;
+  model::HsdNet net(o, torch::rand({4, 3}));
+  const torch::Tensor a = torch::rand({4, 4});
+  net->set_spectral_prior(torch::rand({4}) * 0.3, 1e-3 * (torch::matmul(a, a.t()) + 0.1 * torch::eye(4)), 1e-5,
+                          torch::rand({3, 4}));
+  torch::Tensor psf = torch::rand({4, 2, 9, 9});
+  net->set_band_psf(psf / psf.sum({2, 3}, true));
+  torch::NoGradGuard ng;
+  const torch::Tensor x = torch::rand({2, 3, 24, 20});
+  auto head_depth = [&](const model::NetOutput& out) {
+    return 1.0 / (1.0 / o.depth_max_m + out.depth_unit * (1.0 / o.depth_min_m - 1.0 / o.depth_max_m));
+  };
+  net->eval();
+  const model::NetOutput e = net->forward(x);
+  const torch::Tensor reader = net->reader_depth(x);
+  REQUIRE(reader.sizes() == c10::IntArrayRef{2, 1, 24, 20});
+  CHECK(((reader == 0.5) | (reader == 2.0)).all().item<bool>());
+  CHECK((e.depth_m - 0.5 * (head_depth(e) + reader)).abs().max().item<double>() < 1e-6);
+  CHECK((e.inv_depth * e.depth_m - 1.0).abs().max().item<double>() < 1e-6);
+  net->train();
+  const model::NetOutput t = net->forward(x);
+  CHECK((t.depth_m - head_depth(t)).abs().max().item<double>() < 1e-6);
+  model::NetOptions bad = o;
+  bad.layer_depths_m.clear();
+  CHECK_THROWS(model::HsdNet(bad, torch::rand({4, 3})));
+  CHECK_THROWS_WITH(load_config(test::source_path("configs/tiny.json"), {"model.fuse_defocus_reader=true"}),
+                    Catch::Contains("fuse_defocus_reader"));
+}
