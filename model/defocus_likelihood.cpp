@@ -4,6 +4,7 @@
 
 #include "common/error.h"
 #include "common/fft_size.h"
+#include "model/wiener_preinverse.h"
 
 namespace hsd::model {
 
@@ -22,6 +23,16 @@ torch::Tensor texture_spectrum(int64_t nh, int64_t nw, double f0, bool half, c10
   return h / full.mean();
 }
 
+// The mean over a window_px box around each of the H × W image pixels of a
+// field [N, nh, nw] laid out as the image extended by r pixels on the top and
+// left (the readers' FFT grid): the extension stands in for the scene up to r
+// pixels out, zero padding counted out beyond -> [N, 1, H, W].
+torch::Tensor local_mean(const torch::Tensor& field, int64_t r, int64_t H, int64_t W, int64_t window_px) {
+  const int64_t h = window_px / 2, m = std::min(r, h);
+  const torch::Tensor e = field.narrow(1, r - m, H + 2 * m).narrow(2, r - m, W + 2 * m).unsqueeze(1);
+  return F::avg_pool2d(e, F::AvgPool2dFuncOptions(window_px).stride(1).padding(h - m).count_include_pad(false));
+}
+
 }  // namespace
 
 torch::Tensor defocus_cost_volume(const torch::Tensor& image, const torch::Tensor& rgb_psf, const DefocusModel& m) {
@@ -36,8 +47,7 @@ torch::Tensor defocus_cost_volume(const torch::Tensor& image, const torch::Tenso
   const int64_t nh = fast_fft_size(H + 2 * r), nw = fast_fft_size(W + 2 * r);
   const auto dtype = image.scalar_type() == torch::kFloat64 ? torch::kFloat64 : torch::kFloat32;
   const torch::Tensor x = F::pad(image.to(dtype), F::PadFuncOptions({r, nw - W - r, r, nh - H - r}).mode(torch::kReplicate));
-  torch::Tensor k = F::pad(rgb_psf.to(dtype), F::PadFuncOptions({0, nw - P, 0, nh - P}));
-  k = torch::roll(k, {-r, -r}, {2, 3});  // the PSF's centre at (0, 0)
+  const torch::Tensor k = centred_padded_psf(rgb_psf.to(dtype), nh, nw);
   // D on the real half grid for the whitening, on the full grid for the log-determinant's mean.
   const torch::Tensor Hh = torch::fft::rfft2(k), Hfull = torch::fft::fft2(k);
   const torch::Tensor Dh = texture_spectrum(nh, nw, m.corner_cycles_per_px, true, dtype) *
@@ -47,13 +57,8 @@ torch::Tensor defocus_cost_volume(const torch::Tensor& image, const torch::Tenso
   const torch::Tensor logdet = torch::log(Dfull).mean({2, 3});                  // [K, C]
   const torch::Tensor Y = torch::fft::rfft2(x).unsqueeze(1);                     // [B, 1, C, nh, nw/2+1]
   const torch::Tensor w = torch::fft::irfft2(Y * torch::rsqrt(Dh).unsqueeze(0), c10::IntArrayRef{nh, nw});  // [B, K, C, nh, nw]
-  // Local energy: the mean of |w|² over the box (reflect-free: the extension already surrounds the image).
-  const int64_t h = m.window_px / 2;
-  torch::Tensor e = w.narrow(3, r - std::min(r, h), H + 2 * std::min(r, h)).narrow(4, r - std::min(r, h), W + 2 * std::min(r, h)).square();
-  e = e.reshape({B * K * C, 1, e.size(3), e.size(4)});
-  e = F::avg_pool2d(e, F::AvgPool2dFuncOptions(m.window_px).stride(1).padding(std::max<int64_t>(0, h - std::min(r, h)))
-                           .count_include_pad(false));
-  e = e.reshape({B, K, C, H, W});
+  // Local energy: the mean of |w|² over the box.
+  const torch::Tensor e = local_mean(w.square().reshape({B * K * C, nh, nw}), r, H, W, m.window_px).reshape({B, K, C, H, W});
   // A floor far below any real image's energy keeps the log finite on a black region.
   const torch::Tensor cost = torch::log(e + 1e-20) + logdet.view({1, K, C, 1, 1});
   return cost.sum(2);
@@ -81,9 +86,7 @@ torch::Tensor spectral_defocus_cost_volume(const torch::Tensor& image, const tor
   const torch::Tensor Vq = spectral_wiener_factor(Om, prior.covariance.to(f64));  // [3R, L]
   const int64_t R = Vq.size(0) / 3;
   // Band OTFs with the PSF's centre at (0, 0): [L, K, F].
-  torch::Tensor k = F::pad(psf.to(f64), F::PadFuncOptions({0, nw - P, 0, nh - P}));
-  k = torch::roll(k, {-r, -r}, {2, 3});
-  const torch::Tensor Kf = torch::fft::rfft2(k).reshape({L, K, F_});
+  const torch::Tensor Kf = torch::fft::rfft2(centred_padded_psf(psf.to(f64), nh, nw)).reshape({L, K, F_});
   const torch::Tensor S = spectral_wiener_psd(nh, nw, prior.psd_exponent, image.device());  // [F]
   const double s2 = prior.noise_var;
   // Full-grid means from the real half: its columns 1 .. ceil(nw/2) − 1 stand for two.
@@ -95,7 +98,6 @@ torch::Tensor spectral_defocus_cost_volume(const torch::Tensor& image, const tor
   y = F::pad(y, F::PadFuncOptions({r, nw - W - r, r, nh - H - r}).mode(torch::kReplicate));
   const torch::Tensor Y = torch::fft::rfft2(y).reshape({B, 3, F_});
   const torch::Tensor Y0 = Y.select(1, 0), Y1 = Y.select(1, 1), Y2 = Y.select(1, 2);
-  const int64_t h = window_px / 2, m = std::min(r, h);
   std::vector<torch::Tensor> costs;
   for (int64_t z = 0; z < K; ++z) {  // one layer at a time: Q is [3, R, F]
     const torch::Tensor kc = torch::view_as_real(Kf.select(1, z).contiguous()).reshape({L, F_ * 2});
@@ -114,8 +116,7 @@ torch::Tensor spectral_defocus_cost_volume(const torch::Tensor& image, const tor
     // Whitened by L⁻¹ (forward substitution): |L⁻¹ Y|² = Yᴴ M⁻¹ Y at every frequency.
     const torch::Tensor w0 = Y0 / l00, w1 = (Y1 - l10 * w0) / l11, w2 = (Y2 - l20 * w0 - l21 * w1) / l22;
     const torch::Tensor w = torch::fft::irfft2(torch::stack({w0, w1, w2}, 1).reshape({B, 3, nh, nf}), c10::IntArrayRef{nh, nw});
-    torch::Tensor en = w.narrow(2, r - m, H + 2 * m).narrow(3, r - m, W + 2 * m).square().sum(1, true);  // [B, 1, .., ..]
-    en = F::avg_pool2d(en, F::AvgPool2dFuncOptions(window_px).stride(1).padding(h - m).count_include_pad(false));
+    const torch::Tensor en = local_mean(w.square().sum(1), r, H, W, window_px);  // [B, 1, H, W]
     costs.push_back(3.0 * torch::log(en / 3.0 + 1e-300) + logdet);
   }
   return torch::cat(costs, 1).to(dtype);  // [B, K, H, W]

@@ -19,7 +19,6 @@ NetOptions net_options(const Config& cfg) {
   o.depth_min_m = 1.0 / (1.0 / near + m);
   o.depth_max_m = 1.0 / std::max(1.0 / far - m, 0.5 / far);
   o.preinverse_layers = cfg.model.preinverse == Preinverse::wiener ? int64_t(d.size()) : 0;
-  o.depth_layers = int64_t(d.size());
   o.fuse_defocus_reader = cfg.model.fuse_defocus_reader;
   o.layer_depths_m = d;
   o.preinverse_reg = cfg.model.preinverse_reg;

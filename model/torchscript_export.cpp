@@ -105,6 +105,18 @@ void define_spectral_wiener(torch::jit::Module& m, HsdNet& net) {
   m.register_buffer("sw_psf", net->band_psf().detach().to(torch::kFloat32).clone());
   const auto buffers = net->named_buffers();
   m.register_buffer("sw_vq", spectral_wiener_factor(buffers["sw_omega"], buffers["sw_covariance"]).clone());
+  // sw_psd(nh, nw): spectral_wiener_psd (spectral_wiener.cpp), shared with defocus_cost.
+  std::ostringstream psd;
+  psd << "def sw_psd(self, nh: int, nw: int) -> Tensor:\n"
+      << "        nf = nw // 2 + 1\n"
+      << "        iy = torch.arange(nh).double()\n"
+      << "        fy = (torch.where(iy < float((nh + 1) // 2), iy, iy - float(nh)) / float(nh)).view([-1, 1])\n"
+      << "        fx = (torch.arange(nf).double() / float(nw)).view([1, -1])\n"
+      << "        S = torch.pow(torch.sqrt(fy.square() + fx.square()) + 1.0 / float(max(nh, nw)), -"
+      << c10::str(SpectralPrior().psd_exponent) << ")\n"
+      << "        S = S.flatten()\n        S = S / S[1:].mean()\n"
+      << "        return torch.cat([S[0:1] * 10000.0, S[1:]])\n";
+  m.define(psd.str());
   std::ostringstream w;
   w << "def spectral_wiener(self, image: Tensor) -> Tensor:\n"
     << "        B = image.size(0)\n        H = image.size(2)\n        W = image.size(3)\n"
@@ -138,12 +150,7 @@ void define_spectral_wiener(torch::jit::Module& m, HsdNet& net) {
     << "            a02.append(torch.view_as_complex(torch.view_as_real(q[0] * torch.conj(q[2])).view([rk, n * 2]).sum(0).view([n, 2])))\n"
     << "            a12.append(torch.view_as_complex(torch.view_as_real(q[1] * torch.conj(q[2])).view([rk, n * 2]).sum(0).view([n, 2])))\n"
     << "        inv_k = 1.0 / float(K)\n"
-    << "        iy = torch.arange(nh).double()\n"
-    << "        fy = (torch.where(iy < float((nh + 1) // 2), iy, iy - float(nh)) / float(nh)).view([-1, 1])\n"
-    << "        fx = (torch.arange(nf).double() / float(nw)).view([1, -1])\n"
-    << "        S = torch.pow(torch.sqrt(fy.square() + fx.square()) + 1.0 / float(max(nh, nw)), -" << c10::str(SpectralPrior().psd_exponent) << ")\n"
-    << "        S = S.flatten()\n        S = S / S[1:].mean()\n"
-    << "        S = torch.cat([S[0:1] * 10000.0, S[1:]])\n"
+    << "        S = self.sw_psd(nh, nw)\n"
     << "        s2 = float(self.p_sw_noise_var.item())\n"
     << "        m00 = S * torch.cat(a00) * inv_k + s2\n        m11 = S * torch.cat(a11) * inv_k + s2\n        m22 = S * torch.cat(a22) * inv_k + s2\n"
     << "        m01 = S * torch.cat(a01) * inv_k\n        m02 = S * torch.cat(a02) * inv_k\n        m12 = S * torch.cat(a12) * inv_k\n"
@@ -174,7 +181,7 @@ void define_spectral_wiener(torch::jit::Module& m, HsdNet& net) {
 
 // defocus_cost(image): spectral_defocus_cost_volume (defocus_likelihood.cpp,
 // line for line) with the spectral Wiener base's band PSFs, prior and factor
-// (define_spectral_wiener's buffers), the network's box.
+// (define_spectral_wiener's buffers and sw_psd), the box given.
 void define_spectral_defocus(torch::jit::Module& m) {
   std::ostringstream w;
   w << "def defocus_cost(self, image: Tensor, win: int) -> Tensor:\n"
@@ -187,12 +194,7 @@ void define_spectral_defocus(torch::jit::Module& m) {
     << "        k = torch.constant_pad_nd(self.sw_psf.double(), [0, nw - P, 0, nh - P], 0.0)\n"
     << "        k = torch.roll(k, [-r, -r], [2, 3])\n"
     << "        Kf = torch.fft_rfft2(k).reshape([L, K, Fn])\n"
-    << "        iy = torch.arange(nh).double()\n"
-    << "        fy = (torch.where(iy < float((nh + 1) // 2), iy, iy - float(nh)) / float(nh)).view([-1, 1])\n"
-    << "        fx = (torch.arange(nf).double() / float(nw)).view([1, -1])\n"
-    << "        S = torch.pow(torch.sqrt(fy.square() + fx.square()) + 1.0 / float(max(nh, nw)), -" << c10::str(SpectralPrior().psd_exponent) << ")\n"
-    << "        S = S.flatten()\n        S = S / S[1:].mean()\n"
-    << "        S = torch.cat([S[0:1] * 10000.0, S[1:]])\n"
+    << "        S = self.sw_psd(nh, nw)\n"
     << "        s2 = float(self.p_sw_noise_var.item())\n"
     << "        wcol = S.new_full([nf], 2.0)\n"
     << "        wcol[0] = 1.0\n"

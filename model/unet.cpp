@@ -59,11 +59,12 @@ HsdNetImpl::HsdNetImpl(const NetOptions& options, const torch::Tensor& upsamplin
               "preinverse_layers must be >= 0 and preinverse_reg > 0");
   TORCH_CHECK(!opt_.residual_preinverse || opt_.preinverse_layers > 0,
               "residual_preinverse needs the pre-inversion (preinverse_layers > 0)");
-  TORCH_CHECK(opt_.defocus_cost != DefocusCost::grey || (opt_.preinverse_layers > 0 && opt_.depth_layers == opt_.preinverse_layers),
-              "defocus_cost grey needs the pre-inversion (preinverse_layers = depth_layers > 0)");
-  TORCH_CHECK(opt_.defocus_cost != DefocusCost::spectral || (opt_.residual_spectral_wiener && opt_.depth_layers > 0),
-              "defocus_cost spectral needs the spectral Wiener base and depth_layers > 0");
-  TORCH_CHECK(!opt_.fuse_defocus_reader || (opt_.residual_spectral_wiener && !opt_.layer_depths_m.empty()),
+  const int64_t K = int64_t(opt_.layer_depths_m.size());
+  TORCH_CHECK(opt_.defocus_cost != DefocusCost::grey || (opt_.preinverse_layers > 0 && K == opt_.preinverse_layers),
+              "defocus_cost grey needs the pre-inversion with one layer per entry of layer_depths_m");
+  TORCH_CHECK(opt_.defocus_cost != DefocusCost::spectral || (opt_.residual_spectral_wiener && K > 0),
+              "defocus_cost spectral needs the spectral Wiener base and layer_depths_m");
+  TORCH_CHECK(!opt_.fuse_defocus_reader || (opt_.residual_spectral_wiener && K > 0),
               "fuse_defocus_reader needs the spectral Wiener base and layer_depths_m");
   TORCH_CHECK(!(opt_.residual_preinverse && opt_.residual_spectral_wiener),
               "the residual's base is the pre-inversion or the spectral Wiener cube, not both");
@@ -76,7 +77,7 @@ HsdNetImpl::HsdNetImpl(const NetOptions& options, const torch::Tensor& upsamplin
     down_.push_back(register_module(
         "down" + std::to_string(l),
         block(l == 0 ? opt_.in_channels * (1 + opt_.preinverse_layers) + (opt_.base_as_input ? opt_.bands : 0) +
-                         (opt_.defocus_cost != DefocusCost::none ? opt_.depth_layers : 0)
+                         (opt_.defocus_cost != DefocusCost::none ? K : 0)
                      : width[size_t(l - 1)],
               width[size_t(l)])));
   bottom_ = register_module("bottom", block(width[size_t(opt_.levels - 1)], width[size_t(opt_.levels)]));
@@ -155,26 +156,25 @@ torch::Tensor HsdNetImpl::defocus_input(const torch::Tensor& image) const {
     TORCH_CHECK(preinverse_psf_.defined(), "HsdNet: the grey cost volume needs set_preinverse_psf first");
     cost = defocus_cost_volume(image.detach(), preinverse_psf_.detach(), DefocusModel());
   } else {
-    TORCH_CHECK(band_psf_.defined() && sw_noise_var_.item<double>() > 0,
-                "HsdNet: the spectral cost volume needs set_band_psf and set_spectral_prior first");
-    TORCH_CHECK(band_psf_.size(1) == opt_.depth_layers, "HsdNet: the band PSFs have ", band_psf_.size(1),
-                " depths, the cost volume ", opt_.depth_layers);
-    const SpectralPrior prior{sw_mean_, sw_cov_, sw_noise_var_.item<double>()};
-    cost = spectral_defocus_cost_volume(image.detach(), band_psf_.detach(), sw_omega_, prior, kDefocusInputWindowPx);
+    cost = spectral_reader_cost(image, kDefocusInputWindowPx);
   }
   return (cost - cost.mean(1, true)).to(image.scalar_type());
 }
 
-torch::Tensor HsdNetImpl::reader_depth(const torch::Tensor& image) const {
+torch::Tensor HsdNetImpl::spectral_reader_cost(const torch::Tensor& image, int64_t window_px) const {
   torch::NoGradGuard no_grad;
   TORCH_CHECK(band_psf_.defined() && sw_noise_var_.item<double>() > 0,
-              "HsdNet: the reader's depth needs set_band_psf and set_spectral_prior first");
+              "HsdNet: the spectral depth-from-defocus reader needs set_band_psf and set_spectral_prior first");
   TORCH_CHECK(band_psf_.size(1) == int64_t(opt_.layer_depths_m.size()), "HsdNet: the band PSFs have ", band_psf_.size(1),
-              " depths, the layers ", opt_.layer_depths_m.size());
+              " depths, the network ", opt_.layer_depths_m.size());
   const SpectralPrior prior{sw_mean_, sw_cov_, sw_noise_var_.item<double>()};
-  const torch::Tensor cost =
-      spectral_defocus_cost_volume(image.detach(), band_psf_.detach(), sw_omega_, prior, kDefocusReaderWindowPx);
-  return defocus_layer_depth(cost, opt_.layer_depths_m).unsqueeze(1).to(torch::kFloat32);
+  return spectral_defocus_cost_volume(image.detach(), band_psf_.detach(), sw_omega_, prior, window_px);
+}
+
+torch::Tensor HsdNetImpl::reader_depth(const torch::Tensor& image) const {
+  return defocus_layer_depth(spectral_reader_cost(image, kDefocusReaderWindowPx), opt_.layer_depths_m)
+      .unsqueeze(1)
+      .to(torch::kFloat32);
 }
 
 NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& preinverse_in, const torch::Tensor& base_in) {

@@ -73,15 +73,15 @@ struct NetOptions {
   // spectral = spectral_defocus_cost_volume with the spectral Wiener base's
   // prior and band PSFs (needs residual_spectral_wiener; a 15-px box).
   DefocusCost defocus_cost = DefocusCost::none;
-  // (The spectral cost volume's box: kDefocusInputWindowPx.)
-  // K for the cost volume: the pre-inversion's layers, else the band PSFs' depths (set by net_options).
-  int64_t depth_layers = 0;
+  // (The spectral cost volume's box: kDefocusInputWindowPx; K = layer_depths_m.size().)
   // true (needs residual_spectral_wiener and layer_depths_m): in eval mode the
   // depth is the mean in metres of the head's and the spectral reader's
   // (spectral_defocus_cost_volume over kDefocusReaderWindowPx, each pixel at
   // layer_depths_m of its least cost); training mode is unchanged.
   bool fuse_defocus_reader = false;
-  std::vector<double> layer_depths_m;  // the rendering layers [m] (optics.depths_m)
+  // The rendering layers [m] (optics.depths_m, set by net_options): K for the
+  // cost volume and the reader's depths.
+  std::vector<double> layer_depths_m;
   // The depth head: 0 = one sigmoid output read as normalised inverse depth
   // (the paper's); N >= 2 = N logits over bins at t_k = k/(N-1) of the
   // normalised inverse depth, read as their softmax's expectation Σ p_k t_k
@@ -143,6 +143,9 @@ class HsdNetImpl : public torch::nn::Module {
   void set_replica_group(const std::shared_ptr<ReplicaGroup>& group);
 
  private:
+  // The spectral reader's cost volume with the network's band PSFs and prior
+  // (checks they are set and have K = layer_depths_m.size() depths): [B, K, H, W], no gradient.
+  torch::Tensor spectral_reader_cost(const torch::Tensor& image, int64_t window_px) const;
   torch::nn::Sequential block(int64_t in, int64_t out);
   // One block or layer in the dtype of x (float32 or bfloat16, see above).
   torch::Tensor run_block(torch::nn::Sequential& block, torch::Tensor x) const;

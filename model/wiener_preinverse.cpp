@@ -32,14 +32,17 @@ torch::Tensor wiener_preinverse(const torch::Tensor& image, const torch::Tensor&
   // Edge-replicated extension: r on the top and left, the rest on the bottom and right.
   const torch::Tensor x = F::pad(image.to(dtype), F::PadFuncOptions({r, nw - W - r, r, nh - H - r}).mode(torch::kReplicate));
   // OTFs with the PSF's centre at (0, 0).
-  torch::Tensor k = F::pad(rgb_psf.to(dtype), F::PadFuncOptions({0, nw - P, 0, nh - P}));
-  k = torch::roll(k, {-r, -r}, {2, 3});
-  const torch::Tensor Hf = torch::fft::rfft2(k);                               // [K, C, nh, nw/2+1]
+  const torch::Tensor Hf = torch::fft::rfft2(centred_padded_psf(rgb_psf.to(dtype), nh, nw));  // [K, C, nh, nw/2+1]
   const torch::Tensor power = torch::real(Hf).square() + torch::imag(Hf).square();
   const torch::Tensor G = torch::conj(Hf) / (power + reg);                      // the Wiener filters
   const torch::Tensor Y = torch::fft::rfft2(x).unsqueeze(1);                   // [B, 1, C, nh, nw/2+1]
   const torch::Tensor X = torch::fft::irfft2(Y * G.unsqueeze(0), c10::IntArrayRef{nh, nw});  // [B, K, C, nh, nw]
   return X.narrow(3, r, H).narrow(4, r, W).reshape({B, K * C, H, W});
+}
+
+torch::Tensor centred_padded_psf(const torch::Tensor& psf, int64_t nh, int64_t nw) {
+  const int64_t P = psf.size(-1), r = P / 2;
+  return torch::roll(F::pad(psf, F::PadFuncOptions({0, nw - P, 0, nh - P})), {-r, -r}, {-2, -1});
 }
 
 torch::Tensor preinverse_layer_mean(const torch::Tensor& preinverse, int64_t layers) {

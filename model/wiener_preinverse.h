@@ -27,6 +27,12 @@ torch::Tensor camera_rgb_psfs(const torch::Tensor& psf, const torch::Tensor& ome
 // Float32 (float64 inputs stay float64, for gradient checks).
 torch::Tensor wiener_preinverse(const torch::Tensor& image, const torch::Tensor& rgb_psf, double reg);
 
+// PSFs [.., P, P] (P odd) zero-padded to [.., nh, nw] and rolled so their
+// centre sits at pixel (0, 0): the layout whose DFT is the OTF of a
+// convolution that does not shift the image. Shared by the readers of
+// defocus_likelihood.h.
+torch::Tensor centred_padded_psf(const torch::Tensor& psf, int64_t nh, int64_t nw);
+
 // The mean over the K layers of a pre-inversion [B, K·C, H, W] -> [B, C, H, W]:
 // one deconvolved image without choosing a layer. Upsampled spectrally, it is
 // the network's residual base with model.residual = "preinverse" and the

@@ -138,7 +138,7 @@ TEST_CASE("defocus likelihood: bad shapes and parameters are input errors", "[de
 TEST_CASE("defocus likelihood: model.defocus_cost puts the K-layer cost volume beside the network's inputs", "[defocus]") {
   torch::manual_seed(4);
   model::NetOptions o;
-  o.bands = 5, o.base_width = 8, o.levels = 2, o.norm = NormKind::group, o.preinverse_layers = 2, o.depth_layers = 2, o.defocus_cost = DefocusCost::grey;
+  o.bands = 5, o.base_width = 8, o.levels = 2, o.norm = NormKind::group, o.preinverse_layers = 2, o.layer_depths_m = {0.5, 1.0}, o.defocus_cost = DefocusCost::grey;
   model::HsdNet net(o, torch::rand({5, 3}));
   net->eval();
   net->set_preinverse_psf(gaussians({1.0, 2.5}, 7).expand({2, 3, 7, 7}).to(torch::kFloat32).contiguous());

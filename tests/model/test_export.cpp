@@ -166,7 +166,7 @@ TEST_CASE("export: a network with the spectral Wiener residual exports with its 
   o.depth_bins = GENERATE(0, 5);             // model.depth_bins: the sigmoid head or the bins' soft argmax
   o.defocus_cost = GENERATE(DefocusCost::none, DefocusCost::spectral);  // the spectral cost volume as input too
   o.fuse_defocus_reader = GENERATE(false, true);                         // the reader's depth fused with the head's
-  o.depth_layers = 2, o.layer_depths_m = {0.6, 1.8};
+  o.layer_depths_m = {0.6, 1.8};
   INFO("preinverse layers " << o.preinverse_layers << ", base as input " << o.base_as_input << ", depth bins "
                             << o.depth_bins << ", defocus cost " << choice_name(o.defocus_cost) << ", fused "
                             << o.fuse_defocus_reader);
