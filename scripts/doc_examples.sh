@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Runs the documentation's examples, so they cannot rot: every fenced ```sh
-# block of README.md and docs/*.md that calls build/bin/ runs as written, on
-# tiny versions of the shipped configs.
+# block of README.md and docs/*.md that calls build/bin/ or a script of
+# scripts/ (other than set-up, build and test) runs as written, on tiny
+# versions of the shipped configs.
 #
 #   bash scripts/doc_examples.sh [BUILD_DIR] [WORK_DIR] [PAGE_PATTERN]
 #
@@ -19,8 +20,9 @@
 # they do after it. Each page then runs in its own copy of that folder: its
 # blocks in order, in one bash session (set -euo pipefail), so a block may use
 # an earlier block's files and variables, never another page's. Blocks without
-# build/bin/ (setting up, building) are not run. One rewrite: a
-# --set train.steps=N in an example is cut to the tiny configs' 4 steps.
+# build/bin/ or such a script (setting up, building) are not run. Two
+# rewrites: a --set train.steps=N in an example is cut to the tiny configs' 4
+# steps, and so are scripts/prototype.sh's fine-tuning steps (FINETUNE_STEPS).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 build=$(cd "${1:-$root/build}" && pwd)
@@ -61,11 +63,19 @@ if ! (cd "$start" && bash scripts/quick_job.sh > "$work/quick_job.log" 2>&1); th
   exit 1
 fi
 
-# Prints the ```sh blocks of $1 that call build/bin/, in order.
+# Prints the ```sh blocks of $1 that call build/bin/ or one of the project's
+# scripts (except setup, build, test and quickstart), in order.
 sh_blocks() {
   awk '
     /^[ \t]*```sh[ \t]*$/ { inblock = 1; block = ""; next }
-    /^[ \t]*```/ && inblock { inblock = 0; if (block ~ /build\/bin\//) printf "%s", block; next }
+    /^[ \t]*```/ && inblock {
+      inblock = 0
+      runs_app = block ~ /build\/bin\//
+      # the scripts of scripts/ too, except those that install, build or test
+      runs_script = block ~ /scripts\/[a-z_]+\.sh/ && block !~ /scripts\/(setup|build|test|quickstart|doc_examples)\.sh/
+      if (runs_app || runs_script) printf "%s", block
+      next
+    }
     inblock { sub(/^  /, ""); block = block $0 "\n" }
   ' "$1"
 }
@@ -86,8 +96,9 @@ for page in "${pages[@]}"; do
   # Steps asked for with --set train.steps=N are cut to the tiny configs' 4.
   script=$(printf '%s\n' "$script" | sed -E 's/train\.steps=[0-9]+/train.steps=4/g')
   # The log shows each command with the seconds since the page started.
-  printf 'set -euo pipefail\nPS4='"'"'+ [${SECONDS}s] '"'"'\nset -x\n%s\n' "$script" > "$work/$name.sh"
-  n=$(grep -c 'build/bin/' "$work/$name.sh" || true)
+  # scripts/prototype.sh's fine-tuning steps are cut the same way.
+  printf 'set -euo pipefail\nexport FINETUNE_STEPS=4\nPS4='"'"'+ [${SECONDS}s] '"'"'\nset -x\n%s\n' "$script" > "$work/$name.sh"
+  n=$(grep -cE 'build/bin/|scripts/[a-z_]+\.sh' "$work/$name.sh" || true)
   t=$SECONDS
   if (cd "$dir" && bash "$work/$name.sh" > "$work/$name.log" 2>&1); then
     say "$rel: $n commands ran ($((SECONDS - t)) s)"
