@@ -210,7 +210,7 @@ struct TrainConfig {
   // model.residual = "spectral_wiener": whether the DOE learns through the
   // filter of the cube's residual base (its gradient into the band PSFs);
   // false: the filter is the current DOE's, without that gradient, and the
-  // DOE learns through the sensor image alone. That gradient is ~28 % of the
+  // DOE learns through the sensor image alone. That gradient is ~21 % of the
   // quick config's step (docs/benchmarks.md).
   bool spectral_wiener_doe_gradient = true;
   // model.preinverse = "wiener": whether the DOE learns through the

@@ -64,7 +64,7 @@ torch::Tensor spectral_wiener_cube(const torch::Tensor& image, const torch::Tens
   // OTFs' real view), and the Gram its three squared norms and three products
   // summed along R·K; a block holds about 4 MiB of Q. (Formed as F batched
   // products of L × K by K × L complex matrices instead, the whole filter took
-  // 2.7× as long at the paper's 25 bands and 7 layers: docs/benchmarks.md.)
+  // 2.1-3.1× as long at the paper's 25 bands and 7 layers: docs/benchmarks.md.)
   const torch::Tensor Vq = spectral_wiener_factor(Om, Sig);  // [3R, L], rows (c, j)
   const int64_t rk = Vq.size(0) / 3 * K;                     // R·K
   const int64_t chunk = std::max<int64_t>(256, (int64_t(1) << 22) / std::max<int64_t>(1, 3 * rk * 16));
