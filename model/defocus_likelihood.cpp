@@ -66,15 +66,8 @@ torch::Tensor defocus_cost_volume(const torch::Tensor& image, const torch::Tenso
 
 torch::Tensor spectral_defocus_cost_volume(const torch::Tensor& image, const torch::Tensor& psf, const torch::Tensor& omega,
                                            const SpectralPrior& prior, int64_t window_px) {
-  if (image.dim() != 4 || image.size(1) != 3 || psf.dim() != 4 || psf.size(2) != psf.size(3) || psf.size(2) % 2 == 0 ||
-      omega.dim() != 2 || omega.size(0) != 3 || omega.size(1) != psf.size(0))
-    throw InputError("spectral_defocus_cost_volume: image must be [B, 3, H, W], psf [L, K, P, P] with P odd and omega [3, L], got " +
-                     c10::str(image.sizes()) + ", " + c10::str(psf.sizes()) + " and " + c10::str(omega.sizes()));
+  check_spectral_inputs("spectral_defocus_cost_volume", image, psf, omega, prior);
   const int64_t L = psf.size(0), K = psf.size(1), P = psf.size(2), r = P / 2;
-  if (!prior.mean.defined() || !prior.covariance.defined() || prior.mean.numel() != L ||
-      prior.covariance.sizes() != torch::IntArrayRef{L, L} || !(prior.noise_var > 0))
-    throw InputError("spectral_defocus_cost_volume: the prior needs a mean [" + std::to_string(L) + "], a covariance [" +
-                     std::to_string(L) + ", " + std::to_string(L) + "] and a noise variance > 0");
   if (window_px < 1 || window_px % 2 == 0) throw InputError("spectral_defocus_cost_volume: the window must be odd and >= 1");
   torch::NoGradGuard no_grad;
   const int64_t B = image.size(0), H = image.size(2), W = image.size(3);

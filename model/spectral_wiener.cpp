@@ -24,18 +24,24 @@ torch::Tensor spectral_wiener_factor(const torch::Tensor& omega, const torch::Te
   return (Om.unsqueeze(2) * V.unsqueeze(0)).transpose(1, 2).reshape({-1, L}).contiguous();                     // [3R, L]
 }
 
-torch::Tensor spectral_wiener_cube(const torch::Tensor& image, const torch::Tensor& psf, const torch::Tensor& omega,
-                                   const SpectralPrior& prior) {
+void check_spectral_inputs(const char* who, const torch::Tensor& image, const torch::Tensor& psf,
+                           const torch::Tensor& omega, const SpectralPrior& prior) {
   if (image.dim() != 4 || image.size(1) != 3 || psf.dim() != 4 || psf.size(2) != psf.size(3) || psf.size(2) % 2 == 0 ||
       omega.dim() != 2 || omega.size(0) != 3 || omega.size(1) != psf.size(0))
-    throw InputError("spectral_wiener_cube: image must be [B, 3, H, W], psf [L, K, P, P] with P odd and omega [3, L], got " +
+    throw InputError(std::string(who) + ": image must be [B, 3, H, W], psf [L, K, P, P] with P odd and omega [3, L], got " +
                      c10::str(image.sizes()) + ", " + c10::str(psf.sizes()) + " and " + c10::str(omega.sizes()));
-  const int64_t L = psf.size(0), K = psf.size(1), P = psf.size(2), r = P / 2;
+  const int64_t L = psf.size(0);
   if (!prior.mean.defined() || !prior.covariance.defined() || prior.mean.numel() != L ||
       prior.covariance.sizes() != torch::IntArrayRef{L, L})
-    throw InputError("spectral_wiener_cube: the prior needs a mean [" + std::to_string(L) + "] and a covariance [" +
+    throw InputError(std::string(who) + ": the prior needs a mean [" + std::to_string(L) + "] and a covariance [" +
                      std::to_string(L) + ", " + std::to_string(L) + "]");
-  if (!(prior.noise_var > 0)) throw InputError("spectral_wiener_cube: the noise variance must be > 0");
+  if (!(prior.noise_var > 0)) throw InputError(std::string(who) + ": the noise variance must be > 0");
+}
+
+torch::Tensor spectral_wiener_cube(const torch::Tensor& image, const torch::Tensor& psf, const torch::Tensor& omega,
+                                   const SpectralPrior& prior) {
+  check_spectral_inputs("spectral_wiener_cube", image, psf, omega, prior);
+  const int64_t L = psf.size(0), K = psf.size(1), P = psf.size(2), r = P / 2;
   const int64_t B = image.size(0), H = image.size(2), W = image.size(3);
   const int64_t nh = fast_fft_size(H + 2 * r), nw = fast_fft_size(W + 2 * r), nf = nw / 2 + 1, F_ = nh * nf;
   const auto dtype = image.scalar_type() == torch::kFloat64 ? torch::kFloat64 : torch::kFloat32;

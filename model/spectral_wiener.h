@@ -40,6 +40,13 @@ struct SpectralPrior {
 // [L, L] -> [3R, L] float64, rows ordered (c, j). No gradient.
 torch::Tensor spectral_wiener_factor(const torch::Tensor& omega, const torch::Tensor& covariance);
 
+// Throws InputError, naming `who`, unless image is [B, 3, H, W], psf
+// [L, K, P, P] with P odd, omega [3, L], and the prior has a mean [L], a
+// covariance [L, L] and a noise variance > 0: the inputs every user of the
+// spectral prior (this cube, the spectral depth-from-defocus reader) takes.
+void check_spectral_inputs(const char* who, const torch::Tensor& image, const torch::Tensor& psf,
+                           const torch::Tensor& omega, const SpectralPrior& prior);
+
 // image [B, 3, H, W], psf [L, K, P, P] (P odd, each summing to ≤ 1), omega
 // [3, L] (the camera response that made the image), prior -> [B, L, H, W].
 torch::Tensor spectral_wiener_cube(const torch::Tensor& image, const torch::Tensor& psf, const torch::Tensor& omega,
