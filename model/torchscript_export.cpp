@@ -4,6 +4,7 @@
 #include <sstream>
 
 #include "common/error.h"
+#include "model/depth_fusion.h"
 #include "model/spectral_wiener.h"
 
 namespace hsd::model {
@@ -231,6 +232,20 @@ void define_spectral_defocus(torch::jit::Module& m) {
   m.define(w.str());
 }
 
+// box_mean and guided(guide, p, r, eps): guided_filter.cpp, line for line.
+void define_guided_filter(torch::jit::Module& m) {
+  m.define(
+      "def box_mean(self, x: Tensor, r: int) -> Tensor:\n"
+      "        if r == 0:\n            return x\n"
+      "        return torch.avg_pool2d(x, [2 * r + 1, 2 * r + 1], [1, 1], [r, r], False, False)\n"
+      "def guided(self, I: Tensor, p: Tensor, r: int, eps: float) -> Tensor:\n"
+      "        mI = self.box_mean(I, r)\n        mp = self.box_mean(p, r)\n"
+      "        var = (self.box_mean(I * I, r) - mI * mI).clamp_min(0.0)\n"
+      "        cov = self.box_mean(I * p, r) - mI * mp\n"
+      "        a = cov / (var + eps)\n        b = mp - a * mI\n"
+      "        return self.box_mean(a, r) * I + self.box_mean(b, r)\n");
+}
+
 // forward(image) -> (hs, depth): HsdNetImpl::forward (unet.cpp) as TorchScript
 // source, for the network's levels, normalisation and residual.
 std::string forward_source(const NetOptions& opt) {
@@ -304,10 +319,17 @@ std::string forward_source(const NetOptions& opt) {
     << "        inv_far = 1.0 / " << c10::str(opt.depth_max_m) << "\n"
     << "        inv_near = 1.0 / " << c10::str(opt.depth_min_m) << "\n"
     << "        depth = 1.0 / (inv_far + d * (inv_near - inv_far))\n";
-  if (opt.fuse_defocus_reader)  // the spectral reader's depth, fused in metres (unet.cpp)
-    o << "        idx = torch.argmin(self.defocus_cost(image.float(), " << kDefocusReaderWindowPx << "), 1, True)\n"
+  if (opt.fuse_defocus_reader) {  // the spectral reader's depth, fused in metres (depth_fusion.h)
+    const std::string eps = c10::str(kFusionGuideEps);
+    o << "        g = hs.mean(1, keepdim=True)\n"
+      << "        g = g / g.abs().mean([2, 3], keepdim=True).clamp_min(1e-12)\n"
+      << "        c = self.guided(g, self.defocus_cost(image.float(), " << kFusionReaderBoxPx << "), " << kFusionCostRadiusPx
+      << ", " << eps << ")\n"
+      << "        idx = torch.argmin(c, 1, True)\n"
       << "        zr = torch.index_select(self.layer_depths_m, 0, idx.flatten()).view(idx.shape)\n"
-      << "        depth = 0.5 * (depth + zr.float())\n";
+      << "        depth = self.guided(g, 0.5 * (depth + zr.float()), " << kFusionDepthRadiusPx << ", " << eps << ")\n"
+      << "        depth = depth.clamp(" << c10::str(opt.depth_min_m) << ", " << c10::str(opt.depth_max_m) << ")\n";
+  }
   o << "        return (hs, depth)\n";
   return o.str();
 }
@@ -322,8 +344,10 @@ torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
   if (net->options().preinverse_layers > 0) define_preinverse(m, net);
   if (net->options().residual_spectral_wiener) define_spectral_wiener(m, net);
   if (net->options().defocus_cost == DefocusCost::spectral || net->options().fuse_defocus_reader) define_spectral_defocus(m);
-  if (net->options().fuse_defocus_reader)
+  if (net->options().fuse_defocus_reader) {
     m.register_buffer("layer_depths_m", torch::tensor(net->options().layer_depths_m, torch::kFloat64));
+    define_guided_filter(m);
+  }
   m.define(forward_source(net->options()));
   m.eval();
   return m;

@@ -8,6 +8,7 @@
 #include "model/spectral_wiener.h"
 #include "model/wiener_preinverse.h"
 #include "model/defocus_likelihood.h"
+#include "model/depth_fusion.h"
 
 namespace hsd::model {
 
@@ -171,10 +172,12 @@ torch::Tensor HsdNetImpl::spectral_reader_cost(const torch::Tensor& image, int64
   return spectral_defocus_cost_volume(image.detach(), band_psf_.detach(), sw_omega_, prior, window_px);
 }
 
-torch::Tensor HsdNetImpl::reader_depth(const torch::Tensor& image) const {
-  return defocus_layer_depth(spectral_reader_cost(image, kDefocusReaderWindowPx), opt_.layer_depths_m)
-      .unsqueeze(1)
-      .to(torch::kFloat32);
+torch::Tensor HsdNetImpl::reader_depth(const torch::Tensor& image, const torch::Tensor& guide) const {
+  torch::NoGradGuard no_grad;
+  // Less its mean over the layers (the argmin ignores it; the filter's float32
+  // sums stay small), as the exported reconstructor does.
+  const torch::Tensor c = spectral_reader_cost(image, kFusionReaderBoxPx).to(torch::kFloat32);
+  return filtered_reader_depth(c - c.mean(1, true), guide.detach().to(torch::kFloat32), opt_.layer_depths_m);
 }
 
 NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& preinverse_in, const torch::Tensor& base_in) {
@@ -255,7 +258,8 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& p
   out.depth_m = 1.0 / out.inv_depth;
   out.depth_unit = d;
   if (opt_.fuse_defocus_reader && !is_training()) {
-    out.depth_m = 0.5 * (out.depth_m + reader_depth(image));
+    const torch::Tensor guide = fusion_guide(out.hs.detach());
+    out.depth_m = fuse_depths(out.depth_m, reader_depth(image, guide), guide, opt_.depth_min_m, opt_.depth_max_m);
     out.inv_depth = 1.0 / out.depth_m;
   }
   return out;

@@ -33,8 +33,8 @@ namespace hsd::model {
 // defaults here are for a network built by hand.
 // The box [px] of the network's spectral cost-volume input (NetOptions::defocus_cost).
 inline constexpr int64_t kDefocusInputWindowPx = 15;
-// The box [px] of the spectral reader whose depth is fused with the network's
-// (NetOptions::fuse_defocus_reader) and of hsd_eval's spectral reader baseline.
+// The box [px] of hsd_eval's spectral reader baseline (the fused reader's
+// settings are in depth_fusion.h).
 inline constexpr int64_t kDefocusReaderWindowPx = 31;
 
 struct NetOptions {
@@ -75,9 +75,9 @@ struct NetOptions {
   DefocusCost defocus_cost = DefocusCost::none;
   // (The spectral cost volume's box: kDefocusInputWindowPx; K = layer_depths_m.size().)
   // true (needs residual_spectral_wiener and layer_depths_m): in eval mode the
-  // depth is the mean in metres of the head's and the spectral reader's
-  // (spectral_defocus_cost_volume over kDefocusReaderWindowPx, each pixel at
-  // layer_depths_m of its least cost); training mode is unchanged.
+  // depth is the head's and the spectral reader's averaged in metres, the
+  // reader's costs and the average filtered edge-aware under the cube's
+  // brightness (depth_fusion.h); training mode is unchanged.
   bool fuse_defocus_reader = false;
   // The rendering layers [m] (optics.depths_m, set by net_options): K for the
   // cost volume and the reader's depths.
@@ -123,8 +123,9 @@ class HsdNetImpl : public torch::nn::Module {
   void set_band_psf(const torch::Tensor& psf);
   // The classical cost volume input (NetOptions::defocus_cost): image [B, 3, H, W] -> [B, K, H, W], no gradient.
   torch::Tensor defocus_input(const torch::Tensor& image) const;
-  // The spectral reader's depth (NetOptions::fuse_defocus_reader): image [B, 3, H, W] -> [B, 1, H, W] metres, no gradient.
-  torch::Tensor reader_depth(const torch::Tensor& image) const;
+  // The spectral reader's depth (NetOptions::fuse_defocus_reader): image [B, 3, H, W],
+  // guide [B, 1, H, W] (fusion_guide of the cube) -> [B, 1, H, W] metres, float32, no gradient.
+  torch::Tensor reader_depth(const torch::Tensor& image, const torch::Tensor& guide) const;
   const torch::Tensor& band_psf() const { return band_psf_; }
   // The prior in the buffers (float32; its psd_exponent the default).
   SpectralPrior spectral_prior() const { return {sw_mean_, sw_cov_, sw_noise_var_.item<double>()}; }

@@ -16,6 +16,7 @@
 #include "common/fft_size.h"
 #include "helpers.h"
 #include "model/defocus_likelihood.h"
+#include "model/depth_fusion.h"
 #include "model/unet.h"
 
 using namespace hsd;
@@ -270,7 +271,7 @@ TEST_CASE("spectral defocus likelihood: a scene drawn from the prior and imaged 
   }
 }
 
-TEST_CASE("defocus likelihood: model.fuse_defocus_reader averages the head's depth with the spectral reader's in eval mode only",
+TEST_CASE("defocus likelihood: model.fuse_defocus_reader fuses the head's depth with the spectral reader's in eval mode only",
           "[defocus]") {
   torch::manual_seed(24);
   model::NetOptions o;
@@ -289,10 +290,14 @@ TEST_CASE("defocus likelihood: model.fuse_defocus_reader averages the head's dep
   };
   net->eval();
   const model::NetOutput e = net->forward(x);
-  const torch::Tensor reader = net->reader_depth(x);
+  const torch::Tensor guide = model::fusion_guide(e.hs);
+  const torch::Tensor reader = net->reader_depth(x, guide);
   REQUIRE(reader.sizes() == c10::IntArrayRef{2, 1, 24, 20});
   CHECK(((reader == 0.5) | (reader == 2.0)).all().item<bool>());
-  CHECK((e.depth_m - 0.5 * (head_depth(e) + reader)).abs().max().item<double>() < 1e-6);
+  CHECK((e.depth_m - model::fuse_depths(head_depth(e), reader, guide, o.depth_min_m, o.depth_max_m)).abs().max().item<double>() <
+        1e-6);
+  // Not the plain mean: the filter moves the average somewhere.
+  CHECK((e.depth_m - 0.5 * (head_depth(e) + reader)).abs().max().item<double>() > 1e-3);
   CHECK((e.inv_depth * e.depth_m - 1.0).abs().max().item<double>() < 1e-6);
   net->train();
   const model::NetOutput t = net->forward(x);
