@@ -172,15 +172,19 @@ torch::Tensor HsdNetImpl::spectral_reader_cost(const torch::Tensor& image, int64
   return spectral_defocus_cost_volume(image.detach(), band_psf_.detach(), sw_omega_, prior, window_px);
 }
 
-torch::Tensor HsdNetImpl::reader_depth(const torch::Tensor& image, const torch::Tensor& guide) const {
+torch::Tensor HsdNetImpl::fusion_reader_cost(const torch::Tensor& image) const {
   torch::NoGradGuard no_grad;
-  // Less its mean over the layers (the argmin ignores it; the filter's float32
-  // sums stay small), as the exported reconstructor does.
   const torch::Tensor c = spectral_reader_cost(image, kFusionReaderBoxPx).to(torch::kFloat32);
-  return filtered_reader_depth(c - c.mean(1, true), guide.detach().to(torch::kFloat32), opt_.layer_depths_m);
+  return c - c.mean(1, true);
 }
 
-NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& preinverse_in, const torch::Tensor& base_in) {
+torch::Tensor HsdNetImpl::reader_depth(const torch::Tensor& image, const torch::Tensor& guide) const {
+  torch::NoGradGuard no_grad;
+  return filtered_reader_depth(fusion_reader_cost(image), guide.detach().to(torch::kFloat32), opt_.layer_depths_m);
+}
+
+NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& preinverse_in, const torch::Tensor& base_in,
+                              const torch::Tensor& reader_cost_in) {
   TORCH_CHECK(image.dim() == 4 && image.size(1) == opt_.in_channels, "network input must be [B, ", opt_.in_channels,
               ", H, W], got ", image.sizes());
   const int64_t H = image.size(2), W = image.size(3), m = int64_t(1) << opt_.levels;
@@ -259,7 +263,18 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& p
   out.depth_unit = d;
   if (opt_.fuse_defocus_reader && !is_training()) {
     const torch::Tensor guide = fusion_guide(out.hs.detach());
-    out.depth_m = fuse_depths(out.depth_m, reader_depth(image, guide), guide, opt_.depth_min_m, opt_.depth_max_m);
+    torch::Tensor reader;
+    if (reader_cost_in.defined()) {
+      TORCH_CHECK(reader_cost_in.dim() == 4 && reader_cost_in.size(0) == image.size(0) &&
+                      reader_cost_in.size(1) == int64_t(opt_.layer_depths_m.size()) && reader_cost_in.size(2) == H &&
+                      reader_cost_in.size(3) == W,
+                  "reader cost must be [B, ", opt_.layer_depths_m.size(), ", H, W], got ", reader_cost_in.sizes());
+      torch::NoGradGuard no_grad;
+      reader = filtered_reader_depth(reader_cost_in.to(torch::kFloat32), guide.to(torch::kFloat32), opt_.layer_depths_m);
+    } else {
+      reader = reader_depth(image, guide);
+    }
+    out.depth_m = fuse_depths(out.depth_m, reader, guide, opt_.depth_min_m, opt_.depth_max_m);
     out.inv_depth = 1.0 / out.depth_m;
   }
   return out;

@@ -105,8 +105,13 @@ class HsdNetImpl : public torch::nn::Module {
   // pre-inversion on, `preinverse` [B, 3K, H, W] is its input beside the image;
   // undefined: computed from the image (preinverse(image)).
   // With residual_spectral_wiener, `base` [B, L, H, W] is the residual's base
-  // (undefined: spectral_wiener(image)).
-  NetOutput forward(const torch::Tensor& image, const torch::Tensor& preinverse = {}, const torch::Tensor& base = {});
+  // (undefined: spectral_wiener(image)). With fuse_defocus_reader in eval mode,
+  // `reader_cost` [B, K, H, W] is the fused reader's cost volume
+  // (undefined: fusion_reader_cost(image)); like the other two, its owner may
+  // compute it on a larger window and crop it, so the reader sees the scene
+  // around a patch.
+  NetOutput forward(const torch::Tensor& image, const torch::Tensor& preinverse = {}, const torch::Tensor& base = {},
+                    const torch::Tensor& reader_cost = {});
   // The RGB PSFs [K, 3, P, P] of the pre-inversion's layers (camera_rgb_psfs);
   // set by the owner before forward whenever the optics change (they may carry
   // a gradient to the DOE). Not a parameter or buffer: the optics own them.
@@ -123,8 +128,13 @@ class HsdNetImpl : public torch::nn::Module {
   void set_band_psf(const torch::Tensor& psf);
   // The classical cost volume input (NetOptions::defocus_cost): image [B, 3, H, W] -> [B, K, H, W], no gradient.
   torch::Tensor defocus_input(const torch::Tensor& image) const;
-  // The spectral reader's depth (NetOptions::fuse_defocus_reader): image [B, 3, H, W],
-  // guide [B, 1, H, W] (fusion_guide of the cube) -> [B, 1, H, W] metres, float32, no gradient.
+  // The fused reader's costs (NetOptions::fuse_defocus_reader): image [B, 3, H, W] ->
+  // [B, K, H, W] float32, the spectral cost volume over kFusionReaderBoxPx
+  // (depth_fusion.h) less its mean over the layers (the argmin ignores it; the
+  // filter's float32 sums stay small), as the exported reconstructor computes it. No gradient.
+  torch::Tensor fusion_reader_cost(const torch::Tensor& image) const;
+  // The spectral reader's depth: image [B, 3, H, W], guide [B, 1, H, W]
+  // (fusion_guide of the cube) -> [B, 1, H, W] metres, float32, no gradient.
   torch::Tensor reader_depth(const torch::Tensor& image, const torch::Tensor& guide) const;
   const torch::Tensor& band_psf() const { return band_psf_; }
   // The prior in the buffers (float32; its psd_exponent the default).

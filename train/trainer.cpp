@@ -331,11 +331,19 @@ std::vector<int64_t> Trainer::all_bands() const {
   return v;
 }
 
+torch::Tensor Trainer::fused_reader_cost(const torch::Tensor& window) const {
+  // The fused reader reads the whole rendered window, as the network's linear
+  // inputs do, and is cropped to the patch: on the patch alone it would see
+  // little scene.
+  if (!net_->options().fuse_defocus_reader || net_->is_training()) return {};
+  return centre(net_->fusion_reader_cost(window));
+}
+
 model::NetOutput Trainer::reconstruct_window(const torch::Tensor& window) {
   const torch::Tensor J = centre(window);
   const torch::Tensor pre = net_->options().preinverse_layers > 0 ? centre(net_->preinverse(window)) : torch::Tensor();
   const torch::Tensor base = net_->options().residual_spectral_wiener ? centre(net_->spectral_wiener(window)) : torch::Tensor();
-  return net_->forward(J, pre, base);
+  return net_->forward(J, pre, base, fused_reader_cost(window));
 }
 
 void Trainer::refresh_preinverse() {
@@ -505,7 +513,7 @@ ValStats Trainer::validate() {
     const torch::Tensor pre = K > 0 ? centre(net_->preinverse(img.image)) : torch::Tensor();
     const torch::Tensor base =
         net_->options().residual_spectral_wiener ? centre(net_->spectral_wiener(img.image)) : torch::Tensor();
-    const model::NetOutput out = net_->forward(J, pre, base);
+    const model::NetOutput out = net_->forward(J, pre, base, fused_reader_cost(img.image));
     se_up += (model::spectral_upsample(upsampling_w_.to(J.device()), J) - I).pow(2).sum().item<double>();
     if (K > 0) {  // the Wiener baseline: the layers' mean deconvolution of the window, upsampled
       const torch::Tensor wm = model::preinverse_layer_mean(pre, K);

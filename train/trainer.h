@@ -150,8 +150,12 @@ class Trainer {
   std::string progress_suffix(double loss, double seconds, int64_t steps, double collective_seconds) const;
   void write_val_pictures(const std::string& dir, int64_t step);
   // The network on the centre patch of a rendered window [B, 3, S', S'] (the
-  // pre-inversion, when on, of the whole window, then its centre).
+  // pre-inversion, the spectral Wiener base and the fused reader's costs,
+  // when on, of the whole window, then its centre).
   model::NetOutput reconstruct_window(const torch::Tensor& window);
+  // The fused reader's costs of a window, cropped to its centre patch
+  // [B, K, S, S]; undefined unless model.fuse_defocus_reader and eval mode.
+  torch::Tensor fused_reader_cost(const torch::Tensor& window) const;
   std::vector<int64_t> all_layers() const;  // 0 .. Z−1
   std::vector<int64_t> all_bands() const;   // 0 .. L−1
   // The centre patch_size_px × patch_size_px of [B, C, S', S'] (itself when S' = S).

@@ -296,6 +296,12 @@ TEST_CASE("defocus likelihood: model.fuse_defocus_reader fuses the head's depth 
   CHECK(((reader == 0.5) | (reader == 2.0)).all().item<bool>());
   CHECK((e.depth_m - model::fuse_depths(head_depth(e), reader, guide, o.depth_min_m, o.depth_max_m)).abs().max().item<double>() <
         1e-6);
+  // The reader's costs given (as the trainer gives a window's, cropped) or computed: the same depth.
+  const torch::Tensor rc = net->fusion_reader_cost(x);
+  REQUIRE(rc.sizes() == c10::IntArrayRef{2, 2, 24, 20});
+  CHECK((rc.mean(1)).abs().max().item<double>() < 1e-4);  // less its mean over the layers
+  CHECK(torch::equal(net->forward(x, {}, {}, rc).depth_m, e.depth_m));
+  CHECK_THROWS(net->forward(x, {}, {}, rc.narrow(3, 0, 10)));
   // Not the plain mean: the filter moves the average somewhere.
   CHECK((e.depth_m - 0.5 * (head_depth(e) + reader)).abs().max().item<double>() > 1e-3);
   CHECK((e.inv_depth * e.depth_m - 1.0).abs().max().item<double>() < 1e-6);
