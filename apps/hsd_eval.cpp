@@ -73,6 +73,14 @@ void log_summary(const train::EvalResult& r, const std::string& split) {
                   a.depth_rmse_m / std::max(1e-12, a.baseline_spectral_defocus_depth_rmse_m));
     log::info(buf);
   }
+  if (std::isfinite(a.network_depth_rmse_m)) {
+    std::snprintf(buf, sizeof buf,
+                  "the depth output fuses two readings (report.md): the network's alone RMSE %.4f m, the reader's as "
+                  "fused %.4f m; fused %.4f m, %.2f x the network's alone",
+                  a.network_depth_rmse_m, a.fused_reader_depth_rmse_m, a.depth_rmse_m,
+                  a.depth_rmse_m / std::max(1e-12, a.network_depth_rmse_m));
+    log::info(buf);
+  }
   if (std::isfinite(a.layer_oracle_depth_rmse_m)) {
     std::snprintf(buf, sizeof buf,
                   "the layer oracle (each pixel at its scene's mean depth in its rendering layer; report.md): depth "

@@ -274,6 +274,8 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& p
     } else {
       reader = reader_depth(image, guide);
     }
+    out.network_depth_m = out.depth_m;
+    out.reader_depth_m = reader;
     out.depth_m = fuse_depths(out.depth_m, reader, guide, opt_.depth_min_m, opt_.depth_max_m);
     out.inv_depth = 1.0 / out.depth_m;
   }

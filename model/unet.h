@@ -95,6 +95,10 @@ struct NetOutput {
   torch::Tensor depth_m;     // [B, 1, H, W] metres
   torch::Tensor depth_unit;  // [B, 1, H, W] the depth head's sigmoid output in [0, 1] (for saturation diagnostics)
   torch::Tensor depth_logits;  // [B, N, H, W] float32 with depth_bins = N >= 2, else undefined
+  // With fuse_defocus_reader in eval mode, the two readings depth_m fuses,
+  // each alone [B, 1, H, W] metres: the head's and the filtered reader's
+  // (depth_fusion.h); undefined otherwise.
+  torch::Tensor network_depth_m, reader_depth_m;
 };
 
 class HsdNetImpl : public torch::nn::Module {

@@ -78,7 +78,7 @@ EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& spli
   }
   auto net = [&](const torch::Tensor& x) {
     const model::NetOutput o = trainer.net()->forward(x);
-    return std::make_pair(o.hs, o.depth_m);
+    return Reconstruction(o.hs, o.depth_m, o.network_depth_m, o.reader_depth_m);
   };
   const torch::Tensor model_map = trainer.net()->options().learned_spectral_map
                                       ? trainer.net()->upsampling_weights().detach().cpu()
@@ -137,7 +137,7 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     const optics::SensorImage img = optics::simulate_sensor(psf, sensor, h, radiance.unsqueeze(0),
                                                             sc.depth_m.unsqueeze(0), gen, optics::LeaveOut(), fixed_psf);
     const auto out = reconstruct(img.image);
-    const torch::Tensor hs = out.first[0].cpu(), dp = out.second[0].cpu();
+    const torch::Tensor hs = out.hs[0].cpu(), dp = out.depth_m[0].cpu();
     for (const auto& [t, what] : {std::pair<const torch::Tensor&, const char*>{hs, "cube"}, {dp, "depth map"}}) {
       const std::string bad = first_nonfinite(t);
       if (!bad.empty())
@@ -156,6 +156,12 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     m.lum_ssim = ssim(Yp, Yt, yr, valid);
     const DepthErrors de = depth_errors(dp, sc.depth_m, valid);
     m.depth_rmse_m = de.rmse_m, m.depth_mae_m = de.mae_m;
+    if (out.network_depth_m.defined() && out.reader_depth_m.defined()) {  // the fused depth's two readings alone
+      const DepthErrors dn = depth_errors(out.network_depth_m[0].cpu(), sc.depth_m, valid);
+      const DepthErrors dr = depth_errors(out.reader_depth_m[0].cpu(), sc.depth_m, valid);
+      m.network_depth_rmse_m = dn.rmse_m, m.network_depth_mae_m = dn.mae_m;
+      m.fused_reader_depth_rmse_m = dr.rmse_m, m.fused_reader_depth_mae_m = dr.mae_m;
+    }
     // The baselines on the same pixels.
     const torch::Tensor up = model::spectral_upsample(up_w, img.image.cpu())[0];
     m.baseline_upsampling_hs_psnr_db = psnr_db(up, radiance, m.data_range, valid);
@@ -285,6 +291,13 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
   }
   for (const auto& m : res.scenes)
     a.layer_oracle_depth_rmse_m += m.layer_oracle_depth_rmse_m / n, a.layer_oracle_depth_mae_m += m.layer_oracle_depth_mae_m / n;
+  if (!res.scenes.empty() && std::isfinite(res.scenes[0].network_depth_rmse_m)) {
+    a.network_depth_rmse_m = a.network_depth_mae_m = a.fused_reader_depth_rmse_m = a.fused_reader_depth_mae_m = 0.0;
+    for (const auto& m : res.scenes)
+      a.network_depth_rmse_m += m.network_depth_rmse_m / n, a.network_depth_mae_m += m.network_depth_mae_m / n,
+          a.fused_reader_depth_rmse_m += m.fused_reader_depth_rmse_m / n,
+          a.fused_reader_depth_mae_m += m.fused_reader_depth_mae_m / n;
+  }
   a.oracle_depth_rmse_m.assign(kOracleWindowsPx.size(), 0.0);
   for (const auto& m : res.scenes)
     for (size_t k = 0; k < kOracleWindowsPx.size(); ++k) a.oracle_depth_rmse_m[k] += m.oracle_depth_rmse_m[k] / n;
@@ -331,6 +344,12 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
       j["baseline_spectral_defocus_depth_mae_m"] = m.baseline_spectral_defocus_depth_mae_m;
     }
     j["reference_layer_oracle_depth_mae_m"] = m.layer_oracle_depth_mae_m;
+    if (std::isfinite(m.network_depth_rmse_m)) {
+      j["network_depth_rmse_m"] = m.network_depth_rmse_m;
+      j["network_depth_mae_m"] = m.network_depth_mae_m;
+      j["fused_reader_depth_rmse_m"] = m.fused_reader_depth_rmse_m;
+      j["fused_reader_depth_mae_m"] = m.fused_reader_depth_mae_m;
+    }
     if (!std::isnan(m.depth_effective_resolution_px))  // JSON has no infinity: coarser than every window is null
       j["depth_effective_resolution_px"] = std::isfinite(m.depth_effective_resolution_px) ? Json(m.depth_effective_resolution_px) : Json();
     return j;
@@ -429,6 +448,16 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
                   (long long)kSpectralDefocusWindowPx, a.baseline_spectral_defocus_depth_rmse_m,
                   a.baseline_spectral_defocus_depth_mae_m,
                   a.depth_rmse_m / std::max(1e-12, a.baseline_spectral_defocus_depth_rmse_m));
+    md += buf;
+  }
+  if (std::isfinite(a.network_depth_rmse_m)) {
+    std::snprintf(buf, sizeof buf,
+                  "\nThe depth output fuses two readings (model.fuse_defocus_reader, model/depth_fusion.h), each alone "
+                  "on the same pixels, mean over the scenes: the network's depth (network_depth_*) RMSE %.4f m, MAE "
+                  "%.4f m; the spectral reader as fused (fused_reader_depth_*: its costs over a small box, filtered "
+                  "under the cube) RMSE %.4f m, MAE %.4f m; fused: RMSE %.4f m, %.2f x the network's alone.\n",
+                  a.network_depth_rmse_m, a.network_depth_mae_m, a.fused_reader_depth_rmse_m, a.fused_reader_depth_mae_m,
+                  a.depth_rmse_m, a.depth_rmse_m / std::max(1e-12, a.network_depth_rmse_m));
     md += buf;
   }
   md += "\nPictures: `<scene>_compare.png` (truth | reconstruction | |error| x4 | true depth | predicted depth), "

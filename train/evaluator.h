@@ -45,6 +45,9 @@ struct SceneMetrics {
   double baseline_defocus_depth_rmse_m = std::nan(""), baseline_defocus_depth_mae_m = std::nan("");
   // The same reader with the spectral prior (kSpectralDefocusWindowPx); NaN when no prior is known.
   double baseline_spectral_defocus_depth_rmse_m = std::nan(""), baseline_spectral_defocus_depth_mae_m = std::nan("");
+  // The readings a fused depth combines (Reconstruction), each alone [m]; NaN when the depth is not fused.
+  double network_depth_rmse_m = std::nan(""), network_depth_mae_m = std::nan("");
+  double fused_reader_depth_rmse_m = std::nan(""), fused_reader_depth_mae_m = std::nan("");
 };
 
 // The classical depth-from-defocus baseline's model (model/defocus_likelihood.h):
@@ -69,8 +72,19 @@ struct EvalResult {
   SceneMetrics mean;  // means over the scenes (colorchecker_rmse over ColorChecker scenes)
 };
 
-// A reconstructor: sensor image [B, 3, H, W] -> (cube [B, L, H, W], depth [B, 1, H, W] metres).
-using Reconstructor = std::function<std::pair<torch::Tensor, torch::Tensor>(const torch::Tensor&)>;
+// What a reconstructor returns for a sensor image [B, 3, H, W]: the cube
+// [B, L, H, W] and the depth [B, 1, H, W] metres; for a depth that fuses two
+// readings (model.fuse_defocus_reader), each reading alone [B, 1, H, W]
+// metres, scored beside it (undefined: not reported). A (cube, depth) pair
+// converts to one.
+struct Reconstruction {
+  torch::Tensor hs, depth_m;
+  torch::Tensor network_depth_m, reader_depth_m;
+  Reconstruction(std::pair<torch::Tensor, torch::Tensor> p) : hs(std::move(p.first)), depth_m(std::move(p.second)) {}
+  Reconstruction(torch::Tensor h, torch::Tensor d, torch::Tensor network = {}, torch::Tensor reader = {})
+      : hs(std::move(h)), depth_m(std::move(d)), network_depth_m(std::move(network)), reader_depth_m(std::move(reader)) {}
+};
+using Reconstructor = std::function<Reconstruction(const torch::Tensor&)>;
 
 // The optics (PSF simulator, sensor model, DOE height [N, N]; or a fixed PSF
 // stack through `fixed_psf`: the all-in-focus control, a PSF file) image each

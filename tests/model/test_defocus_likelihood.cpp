@@ -301,6 +301,9 @@ TEST_CASE("defocus likelihood: model.fuse_defocus_reader fuses the head's depth 
   REQUIRE(rc.sizes() == c10::IntArrayRef{2, 2, 24, 20});
   CHECK((rc.mean(1)).abs().max().item<double>() < 1e-4);  // less its mean over the layers
   CHECK(torch::equal(net->forward(x, {}, {}, rc).depth_m, e.depth_m));
+  // The two readings alone, for the evaluation's report: the head's and the reader's.
+  CHECK((e.network_depth_m - head_depth(e)).abs().max().item<double>() < 1e-6);
+  CHECK(torch::equal(e.reader_depth_m, reader));
   CHECK_THROWS(net->forward(x, {}, {}, rc.narrow(3, 0, 10)));
   // Not the plain mean: the filter moves the average somewhere.
   CHECK((e.depth_m - 0.5 * (head_depth(e) + reader)).abs().max().item<double>() > 1e-3);
@@ -308,6 +311,8 @@ TEST_CASE("defocus likelihood: model.fuse_defocus_reader fuses the head's depth 
   net->train();
   const model::NetOutput t = net->forward(x);
   CHECK((t.depth_m - head_depth(t)).abs().max().item<double>() < 1e-6);
+  CHECK(!t.network_depth_m.defined());
+  CHECK(!t.reader_depth_m.defined());
   model::NetOptions bad = o;
   bad.layer_depths_m.clear();
   CHECK_THROWS(model::HsdNet(bad, torch::rand({4, 3})));

@@ -144,6 +144,26 @@ TEST_CASE("baselines: a network that outputs the baselines scores exactly the ba
   }
   CHECK(r.mean.baseline_constant_depth_rmse_m ==
         Approx(0.5 * (r.scenes[0].baseline_constant_depth_rmse_m + r.scenes[1].baseline_constant_depth_rmse_m)));
+  CHECK(std::isnan(r.mean.network_depth_rmse_m));  // not a fused depth: its readings are not reported
+  CHECK(!Json::parse(std::ifstream(root / "eval" / "metrics.json")).contains("network_depth_rmse_m"));
+  // A fused depth's two readings are scored alone on the same pixels: a
+  // "network" reading the constant and a "reader" reading the upsampling's
+  // first band as metres score as those maps do.
+  auto parts = [&](const torch::Tensor& x) {
+    const torch::Tensor c = train::constant_depth_map(x.narrow(1, 0, 1), median);
+    return train::Reconstruction(model::spectral_upsample(w, x), 0.5 * (c + 1.0), c, torch::ones_like(c));
+  };
+  const train::EvalResult rp = train::evaluate(sim, sensor, h, parts, cfg, "test", (root / "eval_p").string(), median);
+  for (const auto& m : rp.scenes) {
+    CHECK(m.network_depth_rmse_m == m.baseline_constant_depth_rmse_m);
+    CHECK(m.network_depth_mae_m == m.baseline_constant_depth_mae_m);
+    CHECK(std::isfinite(m.fused_reader_depth_rmse_m));
+    CHECK(m.fused_reader_depth_rmse_m != m.depth_rmse_m);
+  }
+  CHECK(rp.mean.network_depth_rmse_m == Approx(r.mean.baseline_constant_depth_rmse_m));
+  const Json jp = Json::parse(std::ifstream(root / "eval_p" / "metrics.json"));
+  CHECK(jp.contains("network_depth_rmse_m"));
+  CHECK(jp["scenes"][0].contains("fused_reader_depth_mae_m"));
   // The Wiener baseline: a "network" answering with the layers' mean Wiener
   // deconvolution, upsampled, scores exactly it; it is not the upsampling's.
   // Its depth, the classical depth-from-defocus reader's map, scores exactly
