@@ -338,6 +338,12 @@ ModelConfig parse_model(const JsonReader& m) {
   M.base_as_input = m.get_bool("base_as_input", M.base_as_input);
   M.defocus_cost = read_choice(m, "defocus_cost", M.defocus_cost);
   M.fuse_defocus_reader = m.get_bool("fuse_defocus_reader", M.fuse_defocus_reader);
+  M.fusion_reader_box_px = int_in(m, "fusion_reader_box_px", M.fusion_reader_box_px, 1, 255);
+  if (M.fusion_reader_box_px % 2 == 0)
+    m.fail("fusion_reader_box_px", "must be odd, got " + std::to_string(M.fusion_reader_box_px));
+  M.fusion_cost_radius_px = int_in(m, "fusion_cost_radius_px", M.fusion_cost_radius_px, 0, 255);
+  M.fusion_depth_radius_px = int_in(m, "fusion_depth_radius_px", M.fusion_depth_radius_px, 0, 255);
+  M.fusion_guide_eps = number_in(m, "fusion_guide_eps", M.fusion_guide_eps, '(', 0.0, 1e6, ']');
   if (M.fuse_defocus_reader && M.residual != ResidualBase::spectral_wiener)
     m.fail("fuse_defocus_reader", "needs model.residual = \"spectral_wiener\" (the reader's prior and band PSFs)");
   if (M.defocus_cost == DefocusCost::grey && M.preinverse != Preinverse::wiener)

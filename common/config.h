@@ -170,11 +170,19 @@ struct ModelConfig {
   // prior and band PSFs). Measured: docs/learning.md, "A classical reader of the cue".
   DefocusCost defocus_cost = DefocusCost::none;
   // true (needs residual = "spectral_wiener"): in evaluation (and in the
-  // exported reconstructor) the depth output is the mean, in metres, of the
-  // network's depth and the spectral depth-from-defocus reader's
-  // (model/defocus_likelihood.h, a 31-px box); training is unchanged.
-  // Measured: docs/learning.md, "A classical reader of the cue".
+  // exported reconstructor) the depth output fuses the network's depth with
+  // the spectral depth-from-defocus reader's (model/depth_fusion.h); training
+  // is unchanged. Measured: docs/learning.md, "The reader's window, and an
+  // edge-aware aggregation".
   bool fuse_defocus_reader = false;
+  // The fusion's settings: the reader's energy box (odd, px), the guided
+  // filters' radii of its costs and of the averaged depth (px; 0 = none) and
+  // their ε (relative to the guide's mean squared). 31, 0, 0: the plain mean
+  // with the reader over a 31-px box, the fusion's first form.
+  int64_t fusion_reader_box_px = 7;
+  int64_t fusion_cost_radius_px = 7;
+  int64_t fusion_depth_radius_px = 4;
+  double fusion_guide_eps = 0.1;
   // The depth head: 0 = a sigmoid (the paper's); N >= 2 = a soft argmax over N
   // bins of normalised inverse depth (model/unet.h).
   int64_t depth_bins = 0;

@@ -15,13 +15,13 @@ torch::Tensor fusion_guide(const torch::Tensor& cube) {
 }
 
 torch::Tensor filtered_reader_depth(const torch::Tensor& reader_cost, const torch::Tensor& guide,
-                                    const std::vector<double>& layer_depths_m) {
-  const torch::Tensor c = guided_filter(guide.to(reader_cost.scalar_type()), reader_cost, kFusionCostRadiusPx, kFusionGuideEps);
+                                    const std::vector<double>& layer_depths_m, const FusionSettings& s) {
+  const torch::Tensor c = guided_filter(guide.to(reader_cost.scalar_type()), reader_cost, s.cost_radius_px, s.guide_eps);
   return defocus_layer_depth(c, layer_depths_m).unsqueeze(1);
 }
 
 torch::Tensor fuse_depths(const torch::Tensor& network_depth_m, const torch::Tensor& reader_depth_m, const torch::Tensor& guide,
-                          double depth_min_m, double depth_max_m) {
+                          double depth_min_m, double depth_max_m, const FusionSettings& s) {
   if (network_depth_m.sizes() != reader_depth_m.sizes() || network_depth_m.dim() != 4 || network_depth_m.size(1) != 1)
     throw InputError("fuse_depths: both depths must be [B, 1, H, W], got " + c10::str(network_depth_m.sizes()) + " and " +
                      c10::str(reader_depth_m.sizes()));
@@ -29,7 +29,7 @@ torch::Tensor fuse_depths(const torch::Tensor& network_depth_m, const torch::Ten
     throw InputError("fuse_depths: the depth range must be 0 < min < max, got " + c10::str(depth_min_m) + " and " +
                      c10::str(depth_max_m));
   const torch::Tensor mean = 0.5 * (network_depth_m + reader_depth_m.to(network_depth_m.scalar_type()));
-  return guided_filter(guide.to(mean.scalar_type()), mean, kFusionDepthRadiusPx, kFusionGuideEps).clamp(depth_min_m, depth_max_m);
+  return guided_filter(guide.to(mean.scalar_type()), mean, s.depth_radius_px, s.guide_eps).clamp(depth_min_m, depth_max_m);
 }
 
 }  // namespace hsd::model

@@ -20,6 +20,8 @@ NetOptions net_options(const Config& cfg) {
   o.depth_max_m = 1.0 / std::max(1.0 / far - m, 0.5 / far);
   o.preinverse_layers = cfg.model.preinverse == Preinverse::wiener ? int64_t(d.size()) : 0;
   o.fuse_defocus_reader = cfg.model.fuse_defocus_reader;
+  o.fusion = {cfg.model.fusion_reader_box_px, cfg.model.fusion_cost_radius_px, cfg.model.fusion_depth_radius_px,
+              cfg.model.fusion_guide_eps};
   o.layer_depths_m = d;
   o.preinverse_reg = cfg.model.preinverse_reg;
   o.residual_preinverse = cfg.model.residual == ResidualBase::preinverse;

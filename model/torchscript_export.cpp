@@ -320,14 +320,15 @@ std::string forward_source(const NetOptions& opt) {
     << "        inv_near = 1.0 / " << c10::str(opt.depth_min_m) << "\n"
     << "        depth = 1.0 / (inv_far + d * (inv_near - inv_far))\n";
   if (opt.fuse_defocus_reader) {  // the spectral reader's depth, fused in metres (depth_fusion.h)
-    const std::string eps = c10::str(kFusionGuideEps);
+    const FusionSettings& fs = opt.fusion;
+    const std::string eps = "float(" + c10::str(fs.guide_eps) + ")";
     o << "        g = hs.mean(1, keepdim=True)\n"
       << "        g = g / g.abs().mean([2, 3], keepdim=True).clamp_min(1e-12)\n"
-      << "        c = self.guided(g, self.defocus_cost(image.float(), " << kFusionReaderBoxPx << "), " << kFusionCostRadiusPx
+      << "        c = self.guided(g, self.defocus_cost(image.float(), " << fs.reader_box_px << "), " << fs.cost_radius_px
       << ", " << eps << ")\n"
       << "        idx = torch.argmin(c, 1, True)\n"
       << "        zr = torch.index_select(self.layer_depths_m, 0, idx.flatten()).view(idx.shape)\n"
-      << "        depth = self.guided(g, 0.5 * (depth + zr.float()), " << kFusionDepthRadiusPx << ", " << eps << ")\n"
+      << "        depth = self.guided(g, 0.5 * (depth + zr.float()), " << fs.depth_radius_px << ", " << eps << ")\n"
       << "        depth = depth.clamp(" << c10::str(opt.depth_min_m) << ", " << c10::str(opt.depth_max_m) << ")\n";
   }
   o << "        return (hs, depth)\n";

@@ -174,13 +174,13 @@ torch::Tensor HsdNetImpl::spectral_reader_cost(const torch::Tensor& image, int64
 
 torch::Tensor HsdNetImpl::fusion_reader_cost(const torch::Tensor& image) const {
   torch::NoGradGuard no_grad;
-  const torch::Tensor c = spectral_reader_cost(image, kFusionReaderBoxPx).to(torch::kFloat32);
+  const torch::Tensor c = spectral_reader_cost(image, opt_.fusion.reader_box_px).to(torch::kFloat32);
   return c - c.mean(1, true);
 }
 
 torch::Tensor HsdNetImpl::reader_depth(const torch::Tensor& image, const torch::Tensor& guide) const {
   torch::NoGradGuard no_grad;
-  return filtered_reader_depth(fusion_reader_cost(image), guide.detach().to(torch::kFloat32), opt_.layer_depths_m);
+  return filtered_reader_depth(fusion_reader_cost(image), guide.detach().to(torch::kFloat32), opt_.layer_depths_m, opt_.fusion);
 }
 
 NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& preinverse_in, const torch::Tensor& base_in,
@@ -270,13 +270,14 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& p
                       reader_cost_in.size(3) == W,
                   "reader cost must be [B, ", opt_.layer_depths_m.size(), ", H, W], got ", reader_cost_in.sizes());
       torch::NoGradGuard no_grad;
-      reader = filtered_reader_depth(reader_cost_in.to(torch::kFloat32), guide.to(torch::kFloat32), opt_.layer_depths_m);
+      reader = filtered_reader_depth(reader_cost_in.to(torch::kFloat32), guide.to(torch::kFloat32), opt_.layer_depths_m,
+                                     opt_.fusion);
     } else {
       reader = reader_depth(image, guide);
     }
     out.network_depth_m = out.depth_m;
     out.reader_depth_m = reader;
-    out.depth_m = fuse_depths(out.depth_m, reader, guide, opt_.depth_min_m, opt_.depth_max_m);
+    out.depth_m = fuse_depths(out.depth_m, reader, guide, opt_.depth_min_m, opt_.depth_max_m, opt_.fusion);
     out.inv_depth = 1.0 / out.depth_m;
   }
   return out;

@@ -25,6 +25,7 @@
 
 #include "common/choices.h"
 #include "model/replica_group.h"
+#include "model/depth_fusion.h"
 #include "model/spectral_wiener.h"
 
 namespace hsd::model {
@@ -79,6 +80,7 @@ struct NetOptions {
   // reader's costs and the average filtered edge-aware under the cube's
   // brightness (depth_fusion.h); training mode is unchanged.
   bool fuse_defocus_reader = false;
+  FusionSettings fusion;  // its settings (model.fusion_*)
   // The rendering layers [m] (optics.depths_m, set by net_options): K for the
   // cost volume and the reader's depths.
   std::vector<double> layer_depths_m;
@@ -133,7 +135,7 @@ class HsdNetImpl : public torch::nn::Module {
   // The classical cost volume input (NetOptions::defocus_cost): image [B, 3, H, W] -> [B, K, H, W], no gradient.
   torch::Tensor defocus_input(const torch::Tensor& image) const;
   // The fused reader's costs (NetOptions::fuse_defocus_reader): image [B, 3, H, W] ->
-  // [B, K, H, W] float32, the spectral cost volume over kFusionReaderBoxPx
+  // [B, K, H, W] float32, the spectral cost volume over fusion.reader_box_px
   // (depth_fusion.h) less its mean over the layers (the argmin ignores it; the
   // filter's float32 sums stay small), as the exported reconstructor computes it. No gradient.
   torch::Tensor fusion_reader_cost(const torch::Tensor& image) const;

@@ -17,6 +17,7 @@
 #include "helpers.h"
 #include "model/defocus_likelihood.h"
 #include "model/depth_fusion.h"
+#include "model/net_options.h"
 #include "model/unet.h"
 
 using namespace hsd;
@@ -318,4 +319,25 @@ TEST_CASE("defocus likelihood: model.fuse_defocus_reader fuses the head's depth 
   CHECK_THROWS(model::HsdNet(bad, torch::rand({4, 3})));
   CHECK_THROWS_WITH(load_config(test::source_path("configs/tiny.json"), {"model.fuse_defocus_reader=true"}),
                     Catch::Contains("fuse_defocus_reader"));
+  // The fusion's settings: read from the config, checked, and {31, 0, 0} is the plain mean with a 31-px reader.
+  const Config q = load_config(test::source_path("configs/quick.json"), {"model.fusion_cost_radius_px=3"});
+  CHECK(model::net_options(q).fusion.cost_radius_px == 3);
+  CHECK(model::net_options(q).fusion.depth_radius_px == 4);
+  CHECK_THROWS_WITH(load_config(test::source_path("configs/quick.json"), {"model.fusion_reader_box_px=8"}),
+                    Catch::Contains("fusion_reader_box_px"));
+  CHECK_THROWS_WITH(load_config(test::source_path("configs/quick.json"), {"model.fusion_guide_eps=0"}),
+                    Catch::Contains("fusion_guide_eps"));
+  CHECK_THROWS_WITH(load_config(test::source_path("configs/quick.json"), {"model.fusion_depth_radius_px=-1"}),
+                    Catch::Contains("fusion_depth_radius_px"));
+  model::NetOptions first = o;
+  first.fusion = {31, 0, 0, 0.1};
+  model::HsdNet plain(first, torch::rand({4, 3}));
+  torch::manual_seed(25);
+  plain->set_spectral_prior(torch::rand({4}) * 0.3, 1e-3 * (torch::matmul(a, a.t()) + 0.1 * torch::eye(4)), 1e-5,
+                            torch::rand({3, 4}));
+  plain->set_band_psf(psf / psf.sum({2, 3}, true));
+  plain->eval();
+  const model::NetOutput pe = plain->forward(x);
+  const torch::Tensor z31 = model::defocus_layer_depth(plain->fusion_reader_cost(x), o.layer_depths_m).unsqueeze(1);
+  CHECK((pe.depth_m - 0.5 * (head_depth(pe) + z31)).abs().max().item<double>() < 1e-6);
 }
