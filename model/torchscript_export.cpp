@@ -31,9 +31,9 @@ void block_source(std::ostringstream& o, const std::string& var, const std::stri
         o << "        " << var << " = torch.batch_norm(" << var << ", self." << flat(n + ".weight") << ", self."
           << flat(n + ".bias") << ", self." << flat(n + ".running_mean") << ", self." << flat(n + ".running_var")
           << ", False, 0.1, 1e-05, False)\n";
-      else
-        o << "        " << var << " = torch.group_norm(" << var << ", self.groups_" << flat(n) << ", self."
-          << flat(n + ".weight") << ", self." << flat(n + ".bias") << ", 1e-05, False)\n";
+      else  // statistics in float32 whatever the network's dtype: LibTorch's bfloat16 group_norm is far off (docs/apps.md)
+        o << "        " << var << " = torch.group_norm(" << var << ".float(), self.groups_" << flat(n) << ", self."
+          << flat(n + ".weight") << ".float(), self." << flat(n + ".bias") << ".float(), 1e-05, False).to(" << var << ".dtype)\n";
     }
     o << "        " << var << " = torch.relu(" << var << ")\n";
   }

@@ -107,7 +107,11 @@ TEST_CASE("export: tiled reconstruction equals the whole frame's", "[export]") {
 TEST_CASE("export: bfloat16 inference keeps float32 outputs close to float32", "[export]") {
   torch::manual_seed(7);
   model::NetOptions o;
-  o.bands = 5, o.base_width = 8, o.levels = 2, o.norm = NormKind::batch;
+  o.bands = 5, o.base_width = 8, o.levels = 2;
+  // Group norm's statistics stay float32 in bfloat16 inference (LibTorch's
+  // bfloat16 group_norm put a trained quick model's depth 0.2 m off).
+  o.norm = GENERATE(NormKind::batch, NormKind::group);
+  INFO("norm " << choice_name(o.norm));
   model::HsdNet net(o, torch::rand({5, 3}));
   net->eval();
   torch::jit::Module m32 = model::export_torchscript(net, {{400e-9, 450e-9, 500e-9, 550e-9, 600e-9}, {}, {}});
@@ -123,10 +127,10 @@ TEST_CASE("export: bfloat16 inference keeps float32 outputs close to float32", "
   REQUIRE(hs16.scalar_type() == torch::kFloat32);
   REQUIRE(d16.scalar_type() == torch::kFloat32);
   const double rel = ((hs16 - ref.hs).abs().mean() / ref.hs.abs().mean()).item<double>();
-  INFO("bfloat16 vs float32: cube mean relative difference " << rel);
-  CHECK(rel < 2e-2);
-  CHECK(rel > 0.0);  // it did run in bfloat16
-  CHECK((d16 - ref.depth_m).abs().max().item<double>() < 0.05);
+  INFO("bfloat16 vs float32: cube mean relative difference " << rel << ", depth max " << (d16 - ref.depth_m).abs().max().item<double>());
+  CHECK(rel < 1e-2);  // group norm in bfloat16 gave 0.13 here, its depth 0.26 m
+  CHECK(rel > 0.0);   // it did run in bfloat16
+  CHECK((d16 - ref.depth_m).abs().max().item<double>() < 0.02);
   CHECK_THROWS_AS(model::set_reconstructor_precision(m16, torch::kHalf), InputError);
 }
 
