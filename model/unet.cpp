@@ -178,9 +178,10 @@ torch::Tensor HsdNetImpl::fusion_reader_cost(const torch::Tensor& image) const {
   return c - c.mean(1, true);
 }
 
-torch::Tensor HsdNetImpl::reader_depth(const torch::Tensor& image, const torch::Tensor& guide) const {
+torch::Tensor HsdNetImpl::reader_depth(const torch::Tensor& image, const torch::Tensor& guide, const torch::Tensor& cost) const {
   torch::NoGradGuard no_grad;
-  return filtered_reader_depth(fusion_reader_cost(image), guide.detach().to(torch::kFloat32), opt_.layer_depths_m, opt_.fusion);
+  const torch::Tensor c = cost.defined() ? cost.to(torch::kFloat32) : fusion_reader_cost(image);
+  return filtered_reader_depth(c, guide.detach().to(torch::kFloat32), opt_.layer_depths_m, opt_.fusion);
 }
 
 NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& preinverse_in, const torch::Tensor& base_in,
@@ -263,18 +264,12 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& p
   out.depth_unit = d;
   if (opt_.fuse_defocus_reader && !is_training()) {
     const torch::Tensor guide = fusion_guide(out.hs.detach());
-    torch::Tensor reader;
-    if (reader_cost_in.defined()) {
-      TORCH_CHECK(reader_cost_in.dim() == 4 && reader_cost_in.size(0) == image.size(0) &&
-                      reader_cost_in.size(1) == int64_t(opt_.layer_depths_m.size()) && reader_cost_in.size(2) == H &&
-                      reader_cost_in.size(3) == W,
-                  "reader cost must be [B, ", opt_.layer_depths_m.size(), ", H, W], got ", reader_cost_in.sizes());
-      torch::NoGradGuard no_grad;
-      reader = filtered_reader_depth(reader_cost_in.to(torch::kFloat32), guide.to(torch::kFloat32), opt_.layer_depths_m,
-                                     opt_.fusion);
-    } else {
-      reader = reader_depth(image, guide);
-    }
+    TORCH_CHECK(!reader_cost_in.defined() ||
+                    (reader_cost_in.dim() == 4 && reader_cost_in.size(0) == image.size(0) &&
+                     reader_cost_in.size(1) == int64_t(opt_.layer_depths_m.size()) && reader_cost_in.size(2) == H &&
+                     reader_cost_in.size(3) == W),
+                "reader cost must be [B, ", opt_.layer_depths_m.size(), ", H, W], got ", reader_cost_in.sizes());
+    const torch::Tensor reader = reader_depth(image, guide, reader_cost_in);
     out.network_depth_m = out.depth_m;
     out.reader_depth_m = reader;
     out.depth_m = fuse_depths(out.depth_m, reader, guide, opt_.depth_min_m, opt_.depth_max_m, opt_.fusion);

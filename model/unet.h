@@ -140,8 +140,9 @@ class HsdNetImpl : public torch::nn::Module {
   // filter's float32 sums stay small), as the exported reconstructor computes it. No gradient.
   torch::Tensor fusion_reader_cost(const torch::Tensor& image) const;
   // The spectral reader's depth: image [B, 3, H, W], guide [B, 1, H, W]
-  // (fusion_guide of the cube) -> [B, 1, H, W] metres, float32, no gradient.
-  torch::Tensor reader_depth(const torch::Tensor& image, const torch::Tensor& guide) const;
+  // (fusion_guide of the cube), its costs [B, K, H, W] (undefined:
+  // fusion_reader_cost(image)) -> [B, 1, H, W] metres, float32, no gradient.
+  torch::Tensor reader_depth(const torch::Tensor& image, const torch::Tensor& guide, const torch::Tensor& cost = {}) const;
   const torch::Tensor& band_psf() const { return band_psf_; }
   // The prior in the buffers (float32; its psd_exponent the default).
   SpectralPrior spectral_prior() const { return {sw_mean_, sw_cov_, sw_noise_var_.item<double>()}; }
