@@ -4,6 +4,7 @@
 // spectral plot and the DOE's PSF atlas.
 #include <cmath>
 #include <filesystem>
+#include <map>
 
 #include <torch/script.h>
 #include <torch/torch.h>
@@ -32,7 +33,7 @@ const char* kUsage = usage::kText;
 // The log's summary: the mean metrics with the baselines beside each, their
 // ratios, and the depth's effective resolution.
 void log_summary(const train::EvalResult& r, const std::string& split) {
-  char buf[500];
+  char buf[1200];
   const auto& a = r.mean;
   std::snprintf(buf, sizeof buf,
                 "mean over %zu %s scenes (baselines in brackets): HS PSNR %.2f dB (upsampling alone %.2f dB; Wiener "
@@ -52,10 +53,17 @@ void log_summary(const train::EvalResult& r, const std::string& split) {
   }
   if (std::isfinite(a.baseline_spectral_wiener_hs_psnr_db)) log::info(train::spectral_wiener_summary(a));
   if (std::isfinite(a.model_base_hs_psnr_db)) {
-    std::snprintf(buf, sizeof buf,
-                  "the network's residual base alone (its learned spectral map, no U-Net): HS PSNR %.2f dB, SSIM %.4f; "
-                  "the U-Net adds %+.2f dB",
-                  a.model_base_hs_psnr_db, a.model_base_hs_ssim, a.hs_psnr_db - a.model_base_hs_psnr_db);
+    std::map<std::string, int> lights;  // the illuminant reader's most probable light per scene
+    for (const auto& m : r.scenes)
+      if (!m.illuminant_read.empty()) ++lights[m.illuminant_read];
+    std::string read;
+    for (const auto& [name, n] : lights) read += (read.empty() ? "" : ", ") + name + " " + std::to_string(n);
+    std::snprintf(buf, sizeof buf, "the network's residual base alone (%s, no U-Net): HS PSNR %.2f dB, SSIM %.4f; "
+                  "the U-Net adds %+.2f dB%s%s",
+                  lights.empty() ? "its learned spectral map"
+                                 : "the spectral Wiener cube under the light the illuminant reader read",
+                  a.model_base_hs_psnr_db, a.model_base_hs_ssim, a.hs_psnr_db - a.model_base_hs_psnr_db,
+                  lights.empty() ? "" : "; lights read (scenes): ", read.c_str());
     log::info(buf);
   }
   if (std::isfinite(a.baseline_defocus_depth_rmse_m)) {

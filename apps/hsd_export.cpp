@@ -35,6 +35,7 @@ int run(const AppArgs& args) {
   setup_threads(cfg.threads);
   train::Trainer trainer(cfg);
   trainer.load_checkpoint(ckpt);
+  trainer.ensure_illuminant_moments();  // model.read_illuminant: the reader's moments from the training split
   trainer.net()->eval();
   std::ostringstream sha;
   sha << std::hex << std::hash<std::string>{}(cfg.resolved.dump());

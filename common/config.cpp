@@ -344,6 +344,11 @@ ModelConfig parse_model(const JsonReader& m) {
   M.fusion_cost_radius_px = int_in(m, "fusion_cost_radius_px", M.fusion_cost_radius_px, 0, 255);
   M.fusion_depth_radius_px = int_in(m, "fusion_depth_radius_px", M.fusion_depth_radius_px, 0, 255);
   M.fusion_guide_eps = number_in(m, "fusion_guide_eps", M.fusion_guide_eps, '(', 0.0, 1e6, ']');
+  M.read_illuminant = m.get_bool("read_illuminant", M.read_illuminant);
+  M.illuminant_block_px = int_in(m, "illuminant_block_px", M.illuminant_block_px, 1, 4096);
+  M.illuminant_effective_blocks = number_in(m, "illuminant_effective_blocks", M.illuminant_effective_blocks, '(', 0.0, 1e9, ']');
+  if (M.read_illuminant && M.residual != ResidualBase::spectral_wiener)
+    m.fail("read_illuminant", "needs model.residual = \"spectral_wiener\" (the prior it re-weighs)");
   if (M.fuse_defocus_reader && M.residual != ResidualBase::spectral_wiener)
     m.fail("fuse_defocus_reader", "needs model.residual = \"spectral_wiener\" (the reader's prior and band PSFs)");
   if (M.defocus_cost == DefocusCost::grey && M.preinverse != Preinverse::wiener)

@@ -183,6 +183,16 @@ struct ModelConfig {
   int64_t fusion_cost_radius_px = 7;
   int64_t fusion_depth_radius_px = 4;
   double fusion_guide_eps = 0.1;
+  // true (needs residual = "spectral_wiener" and reflectance training scenes):
+  // in evaluation (and validation, and the exported reconstructor) the
+  // spectral Wiener base uses the spectral prior mixed under the posterior of
+  // the training illuminants given each image (model/illuminant_reader.h),
+  // not the equal-weight mixture; the readers of depth and training are
+  // unchanged. Its block means' side (px)
+  // and the number of independent blocks the likelihood counts as.
+  bool read_illuminant = false;
+  int64_t illuminant_block_px = 16;
+  double illuminant_effective_blocks = 32;
   // The depth head: 0 = a sigmoid (the paper's); N >= 2 = a soft argmax over N
   // bins of normalised inverse depth (model/unet.h).
   int64_t depth_bins = 0;

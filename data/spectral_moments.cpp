@@ -42,4 +42,29 @@ SpectralMoments radiance_moments(const std::vector<LoadedScene>& scenes, const t
   return out;
 }
 
+ReflectanceMoments reflectance_moments(const std::vector<LoadedScene>& scenes) {
+  torch::Tensor s1, s2;
+  int64_t n = 0;
+  for (const auto& ls : scenes) {
+    const auto& sc = ls.scene;
+    if (sc.kind != SpectralKind::Reflectance)
+      throw InputError(ls.file + ": a radiance scene; the illuminant reader needs reflectance training scenes");
+    const int64_t L = sc.spectral.size(0);
+    const torch::Tensor valid = sc.mask.reshape({-1}) > 0.5;
+    const torch::Tensor x = sc.spectral.reshape({L, -1}).index({torch::indexing::Slice(), valid}).to(torch::kFloat64);
+    if (x.size(1) == 0) continue;
+    const torch::Tensor m = x.sum(1), R = torch::matmul(x, x.t());
+    s1 = s1.defined() ? s1 + m : m;
+    s2 = s2.defined() ? s2 + R : R;
+    n += x.size(1);
+  }
+  if (n == 0) throw InputError("reflectance_moments: no scene has a valid pixel");
+  ReflectanceMoments out;
+  out.mean = s1 / double(n);
+  out.second = s2 / double(n);
+  out.second = 0.5 * (out.second + out.second.t());
+  out.pixels = n;
+  return out;
+}
+
 }  // namespace hsd::data

@@ -26,4 +26,16 @@ struct SpectralMoments {
 SpectralMoments radiance_moments(const std::vector<LoadedScene>& scenes, const torch::Tensor& illuminants,
                                  double intensity_min, double intensity_max);
 
+// The reflectance's own moments over the valid pixels of reflectance scenes
+// (each pixel weighted equally): m_r [L] and R_r = E[r rᵀ] [L, L], float64,
+// the unlit factors of the moments above (model/illuminant_reader.h lights
+// them one illuminant at a time). InputError naming the file when a scene is
+// a radiance (its light cannot be taken out), or when no pixel is valid.
+struct ReflectanceMoments {
+  torch::Tensor mean;    // [L]
+  torch::Tensor second;  // [L, L]
+  int64_t pixels = 0;
+};
+ReflectanceMoments reflectance_moments(const std::vector<LoadedScene>& scenes);
+
 }  // namespace hsd::data

@@ -22,6 +22,8 @@ NetOptions net_options(const Config& cfg) {
   o.fuse_defocus_reader = cfg.model.fuse_defocus_reader;
   o.fusion = {cfg.model.fusion_reader_box_px, cfg.model.fusion_cost_radius_px, cfg.model.fusion_depth_radius_px,
               cfg.model.fusion_guide_eps};
+  o.read_illuminant = cfg.model.read_illuminant;
+  o.illuminant_reader = {cfg.model.illuminant_block_px, cfg.model.illuminant_effective_blocks};
   o.layer_depths_m = d;
   o.preinverse_reg = cfg.model.preinverse_reg;
   o.residual_preinverse = cfg.model.residual == ResidualBase::preinverse;

@@ -5,6 +5,7 @@
 
 #include "common/error.h"
 #include "model/depth_fusion.h"
+#include "model/illuminant_reader.h"
 #include "model/spectral_wiener.h"
 
 namespace hsd::model {
@@ -119,13 +120,12 @@ void define_spectral_wiener(torch::jit::Module& m, HsdNet& net) {
       << "        return torch.cat([S[0:1] * 10000.0, S[1:]])\n";
   m.define(psd.str());
   std::ostringstream w;
-  w << "def spectral_wiener(self, image: Tensor) -> Tensor:\n"
+  w << "def spectral_wiener(self, image: Tensor, mu: Tensor, Sig: Tensor, Vq: Tensor) -> Tensor:\n"
     << "        B = image.size(0)\n        H = image.size(2)\n        W = image.size(3)\n"
     << "        L = self.sw_psf.size(0)\n        K = self.sw_psf.size(1)\n        P = self.sw_psf.size(2)\n        r = P // 2\n"
     << "        nh = self.fast_fft_size(H + 2 * r)\n        nw = self.fast_fft_size(W + 2 * r)\n"
     << "        nf = nw // 2 + 1\n        Fn = nh * nf\n"
-    << "        Om = self.p_sw_omega.double()\n        mu = self.p_sw_mean.double()\n"
-    << "        Sig = self.p_sw_covariance.double()\n"
+    << "        Om = self.p_sw_omega.double()\n"
     << "        p = self.sw_psf.double()\n        a = P - r\n"
     << "        k = p.new_zeros([L, K, nh, nw])\n"
     << "        k[:, :, 0:a, 0:a] = p[:, :, r:P, r:P]\n"
@@ -134,7 +134,6 @@ void define_spectral_wiener(torch::jit::Module& m, HsdNet& net) {
     << "        k[:, :, nh - r:nh, nw - r:nw] = p[:, :, 0:r, 0:r]\n"
     << "        Kf = torch.fft_rfft2(k).reshape([L, K, Fn])\n"
     << "        Kbar = Kf.mean(1)\n"
-    << "        Vq = self.sw_vq\n"
     << "        rk = Vq.size(0) // 3 * K\n"
     << "        chunk = max(256, 4194304 // max(1, 3 * rk * 16))\n"
     << "        a00: List[Tensor] = []\n        a11: List[Tensor] = []\n        a22: List[Tensor] = []\n"
@@ -185,13 +184,13 @@ void define_spectral_wiener(torch::jit::Module& m, HsdNet& net) {
 // (define_spectral_wiener's buffers and sw_psd), the box given.
 void define_spectral_defocus(torch::jit::Module& m) {
   std::ostringstream w;
-  w << "def defocus_cost(self, image: Tensor, win: int) -> Tensor:\n"
+  w << "def defocus_cost(self, image: Tensor, win: int, mu: Tensor, Vq: Tensor) -> Tensor:\n"
     << "        B = image.size(0)\n        H = image.size(2)\n        W = image.size(3)\n"
     << "        L = self.sw_psf.size(0)\n        K = self.sw_psf.size(1)\n        P = self.sw_psf.size(2)\n        r = P // 2\n"
     << "        nh = self.fast_fft_size(H + 2 * r)\n        nw = self.fast_fft_size(W + 2 * r)\n"
     << "        nf = nw // 2 + 1\n        Fn = nh * nf\n"
-    << "        Om = self.p_sw_omega.double()\n        mu = self.p_sw_mean.double()\n"
-    << "        Vq = self.sw_vq\n        R = Vq.size(0) // 3\n"
+    << "        Om = self.p_sw_omega.double()\n"
+    << "        R = Vq.size(0) // 3\n"
     << "        k = torch.constant_pad_nd(self.sw_psf.double(), [0, nw - P, 0, nh - P], 0.0)\n"
     << "        k = torch.roll(k, [-r, -r], [2, 3])\n"
     << "        Kf = torch.fft_rfft2(k).reshape([L, K, Fn])\n"
@@ -232,6 +231,87 @@ void define_spectral_defocus(torch::jit::Module& m) {
   m.define(w.str());
 }
 
+// sw_cube(image) and reader_cost(image, win): the spectral Wiener base with
+// the prior HsdNetImpl::prior_for gives in eval mode (the buffers', its factor
+// sw_vq computed once, or with read_illuminant each image's posterior
+// mixture, illuminant_prior below), and the spectral reader's costs with the
+// buffers' prior always (unet.cpp).
+void define_prior_users(torch::jit::Module& m, const NetOptions& opt) {
+  std::ostringstream w;
+  if (!opt.read_illuminant) {
+    w << "def sw_cube(self, image: Tensor) -> Tensor:\n"
+      << "        return self.spectral_wiener(image, self.p_sw_mean.double(), self.p_sw_covariance.double(), self.sw_vq)\n"
+      << "def reader_cost(self, image: Tensor, win: int) -> Tensor:\n"
+      << "        return self.defocus_cost(image, win, self.p_sw_mean.double(), self.sw_vq)\n";
+  } else {
+    w << "def sw_cube(self, image: Tensor) -> Tensor:\n"
+      << "        out: List[Tensor] = []\n"
+      << "        for b in range(image.size(0)):\n"
+      << "            x = image[b:b + 1]\n"
+      << "            pr = self.illuminant_prior(x)\n"
+      << "            out.append(self.spectral_wiener(x, pr[0], pr[1], pr[2]))\n"
+      << "        return torch.cat(out, 0)\n"
+      << "def reader_cost(self, image: Tensor, win: int) -> Tensor:\n"
+      << "        return self.defocus_cost(image, win, self.p_sw_mean.double(), self.sw_vq)\n";
+  }
+  m.define(w.str());
+}
+
+// illuminant_prior(image [1, 3, H, W]) -> (μ_w, Σ_w, the factor Ω V of Σ_w):
+// illuminant_log_likelihood, illuminant_posterior, illuminant_mixture_prior
+// (illuminant_reader.cpp) and spectral_wiener_factor (spectral_wiener.cpp),
+// line for line, with the network's illuminant moments as buffers.
+void define_illuminant_reader(torch::jit::Module& m, HsdNet& net) {
+  const IlluminantMoments& im = net->illuminant_moments();
+  if (!im.mean.defined()) throw InputError("export: the network's illuminant moments are not set (load a checkpoint first)");
+  const NetOptions& opt = net->options();
+  m.register_buffer("il_mean", im.mean.to(torch::kFloat64).clone());
+  m.register_buffer("il_second", im.second.to(torch::kFloat64).clone());
+  m.register_buffer("il_grid", illuminant_intensity_grid(im.intensity_min, im.intensity_max));
+  const double lo = im.intensity_min, hi = im.intensity_max;
+  const double es = 0.5 * (lo + hi), es2 = (lo * lo + lo * hi + hi * hi) / 3.0;
+  std::ostringstream w;
+  w << "def illuminant_prior(self, image: Tensor) -> Tuple[Tensor, Tensor, Tensor]:\n"
+    << "        x = image.double()\n        H = x.size(2)\n        W = x.size(3)\n"
+    << "        bs = max(1, min(" << opt.illuminant_reader.block_px << ", min(H, W)))\n"
+    << "        b = torch.avg_pool2d(x, [bs, bs], [bs, bs], [0, 0], False, True, None).flatten(2)[0].t()\n"
+    << "        J = float(b.size(0))\n"
+    << "        bm = b.mean(0)\n"
+    << "        Q = torch.mm(b.t(), b) / J\n"
+    << "        Om = self.p_sw_omega.double()\n"
+    << "        G = Om * self.sw_psf.double().sum([2, 3]).mean(1).view([1, -1])\n"
+    << "        mu = self.il_mean\n"
+    << "        C = self.il_second - mu.unsqueeze(2) * mu.unsqueeze(1)\n"
+    << "        g = torch.mm(mu, G.t())\n"
+    << "        A = torch.matmul(torch.matmul(G, C), G.t())\n"
+    << "        s = self.il_grid\n"
+    << "        nv = float(self.p_sw_noise_var.item())\n"
+    << "        tau2 = nv / float(bs * bs) + " << c10::str(kIlluminantModelFloor) << " * (float(Q.diagonal().mean().item()) + 1e-300)\n"
+    << "        s2 = (s * s).view([1, -1, 1, 1])\n"
+    << "        Sg = s2 * A.unsqueeze(1) + tau2 * torch.diag(g.new_ones([3]))\n"
+    << "        Si = torch.linalg_inv(Sg)\n"
+    << "        logdet = torch.linalg_slogdet(Sg)[1]\n"
+    << "        cross = bm.view([1, 3, 1]) * g.unsqueeze(1) + g.unsqueeze(2) * bm.view([1, 1, 3])\n"
+    << "        gg = g.unsqueeze(2) * g.unsqueeze(1)\n"
+    << "        D = Q.view([1, 1, 3, 3]) - s.view([1, -1, 1, 1]) * cross.unsqueeze(1) + s2 * gg.unsqueeze(1)\n"
+    << "        quad = (Si * D).sum([2, 3])\n"
+    << "        ll = torch.max(-0.5 * J * (logdet + quad), 1)[0]\n"
+    << "        Jn = float((H // bs) * (W // bs))\n"
+    << "        wts = torch.softmax(ll * (" << c10::str(opt.illuminant_reader.effective_blocks) << " / max(Jn, 1.0)), 0)\n"
+    << "        mw = " << c10::str(es) << " * torch.mv(self.il_mean.t(), wts)\n"
+    << "        M = " << c10::str(es2) << " * (wts.view([-1, 1, 1]) * self.il_second).sum(0)\n"
+    << "        cov = M - torch.outer(mw, mw)\n"
+    << "        cov = 0.5 * (cov + cov.t())\n"
+    << "        L = cov.size(0)\n"
+    << "        eg = torch.linalg_eigh(0.5 * (cov + cov.t()))\n"
+    << "        e = eg[0]\n        U = eg[1]\n"
+    << "        keep = torch.nonzero(e > 1e-14 * e.abs().max().clamp_min(1e-300)).flatten()\n"
+    << "        V = torch.index_select(U * e.clamp_min(0.0).sqrt().view([1, L]), 1, keep)\n"
+    << "        Vq = (Om.unsqueeze(2) * V.unsqueeze(0)).transpose(1, 2).reshape([-1, L]).contiguous()\n"
+    << "        return (mw, cov, Vq)\n";
+  m.define(w.str());
+}
+
 // box_mean and guided(guide, p, r, eps): guided_filter.cpp, line for line.
 void define_guided_filter(torch::jit::Module& m) {
   m.define(
@@ -263,7 +343,7 @@ std::string forward_source(const NetOptions& opt) {
     // keeps it; run_reconstructor passes channels-last); the outputs are float32.
     << "        x = image\n"
     << "        base = image.float()\n";  // the cube residual's base (unet.cpp)
-  if (opt.residual_spectral_wiener) o << "        sw_base = self.spectral_wiener(image.float())\n";
+  if (opt.residual_spectral_wiener) o << "        sw_base = self.sw_cube(image.float())\n";
   if (pre) {
     o << "        pin = self.preinverse(image.float())\n"
       << "        x = torch.cat([image, pin.to(image.dtype)], 1)\n";
@@ -279,7 +359,7 @@ std::string forward_source(const NetOptions& opt) {
       << "        cb = up.reshape([Lb, B, H, W]).permute([1, 0, 2, 3])\n";
   if (opt.base_as_input) o << "        x = torch.cat([x, cb.to(x.dtype)], 1)\n";
   if (opt.defocus_cost == DefocusCost::spectral)
-    o << "        x = torch.cat([x, self.defocus_cost(image.float(), " << kDefocusInputWindowPx << ").to(x.dtype)], 1)\n";
+    o << "        x = torch.cat([x, self.reader_cost(image.float(), " << kDefocusInputWindowPx << ").to(x.dtype)], 1)\n";
   o
     << "        if ph > 0 or pw > 0:\n"
     << "            if ph < H and pw < W:\n"
@@ -324,7 +404,7 @@ std::string forward_source(const NetOptions& opt) {
     const std::string eps = "float(" + c10::str(fs.guide_eps) + ")";
     o << "        g = hs.mean(1, keepdim=True)\n"
       << "        g = g / g.abs().mean([2, 3], keepdim=True).clamp_min(1e-12)\n"
-      << "        c = self.guided(g, self.defocus_cost(image.float(), " << fs.reader_box_px << "), " << fs.cost_radius_px
+      << "        c = self.guided(g, self.reader_cost(image.float(), " << fs.reader_box_px << "), " << fs.cost_radius_px
       << ", " << eps << ")\n"
       << "        idx = torch.argmin(c, 1, True)\n"
       << "        zr = torch.index_select(self.layer_depths_m, 0, idx.flatten()).view(idx.shape)\n"
@@ -343,8 +423,12 @@ torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
   register_weights(m, net, meta);
   if (net->options().preinverse_layers > 0 || net->options().residual_spectral_wiener) define_fast_fft_size(m);
   if (net->options().preinverse_layers > 0) define_preinverse(m, net);
-  if (net->options().residual_spectral_wiener) define_spectral_wiener(m, net);
-  if (net->options().defocus_cost == DefocusCost::spectral || net->options().fuse_defocus_reader) define_spectral_defocus(m);
+  if (net->options().residual_spectral_wiener) {
+    define_spectral_wiener(m, net);
+    define_spectral_defocus(m);
+    if (net->options().read_illuminant) define_illuminant_reader(m, net);
+    define_prior_users(m, net->options());
+  }
   if (net->options().fuse_defocus_reader) {
     m.register_buffer("layer_depths_m", torch::tensor(net->options().layer_depths_m, torch::kFloat64));
     define_guided_filter(m);

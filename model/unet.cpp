@@ -125,10 +125,42 @@ void HsdNetImpl::set_band_psf(const torch::Tensor& psf) {
   band_psf_ = psf;
 }
 
+void HsdNetImpl::set_illuminant_moments(const IlluminantMoments& m) {
+  TORCH_CHECK(m.mean.defined() && m.mean.dim() == 2 && m.mean.size(1) == opt_.bands,
+              "illuminant moments must be [K, ", opt_.bands, "]");
+  illum_ = m;
+}
+
+torch::Tensor HsdNetImpl::illuminant_posterior(const torch::Tensor& image) const {
+  TORCH_CHECK(illum_.mean.defined(), "HsdNet: the illuminant reader needs set_illuminant_moments first");
+  TORCH_CHECK(band_psf_.defined(), "HsdNet: the illuminant reader needs set_band_psf first");
+  torch::NoGradGuard no_grad;
+  const torch::Tensor energy = band_psf_.detach().to(torch::kFloat64).sum({2, 3}).mean(1);  // [L]
+  const torch::Tensor ll = illuminant_log_likelihood(image, sw_omega_, energy, illum_, sw_noise_var_.item<double>(),
+                                                     opt_.illuminant_reader.block_px);
+  return model::illuminant_posterior(ll, image.size(2), image.size(3), opt_.illuminant_reader);
+}
+
+SpectralPrior HsdNetImpl::prior_for(const torch::Tensor& image) const {
+  const SpectralPrior buffers{sw_mean_, sw_cov_, sw_noise_var_.item<double>()};
+  if (!opt_.read_illuminant || is_training()) return buffers;
+  TORCH_CHECK(image.size(0) == 1, "HsdNet::prior_for takes one image");
+  const torch::Tensor w = illuminant_posterior(image)[0];
+  return illuminant_mixture_prior(illum_, w, buffers.noise_var);
+}
+
 torch::Tensor HsdNetImpl::spectral_wiener(const torch::Tensor& image) const {
   TORCH_CHECK(opt_.residual_spectral_wiener, "HsdNet: spectral_wiener without residual_spectral_wiener");
   TORCH_CHECK(band_psf_.defined(), "HsdNet: the spectral Wiener base needs set_band_psf first");
   TORCH_CHECK(sw_noise_var_.item<double>() > 0, "HsdNet: the spectral Wiener base's prior was never set");
+  if (opt_.read_illuminant && !is_training()) {  // one prior per image
+    std::vector<torch::Tensor> out;
+    for (int64_t b = 0; b < image.size(0); ++b) {
+      const torch::Tensor x = image.narrow(0, b, 1);
+      out.push_back(spectral_wiener_cube(x, band_psf_, sw_omega_, prior_for(x)).to(torch::kFloat32));
+    }
+    return torch::cat(out, 0);
+  }
   const SpectralPrior prior{sw_mean_, sw_cov_, sw_noise_var_.item<double>()};
   return spectral_wiener_cube(image, band_psf_, sw_omega_, prior).to(torch::kFloat32);
 }
@@ -168,6 +200,9 @@ torch::Tensor HsdNetImpl::spectral_reader_cost(const torch::Tensor& image, int64
               "HsdNet: the spectral depth-from-defocus reader needs set_band_psf and set_spectral_prior first");
   TORCH_CHECK(band_psf_.size(1) == int64_t(opt_.layer_depths_m.size()), "HsdNet: the band PSFs have ", band_psf_.size(1),
               " depths, the network ", opt_.layer_depths_m.size());
+  // The buffers' prior even with read_illuminant: the light read made the
+  // fused depth worse on the quick config's test split, the light known too
+  // (docs/learning.md, "Reading the light").
   const SpectralPrior prior{sw_mean_, sw_cov_, sw_noise_var_.item<double>()};
   return spectral_defocus_cost_volume(image.detach(), band_psf_.detach(), sw_omega_, prior, window_px);
 }

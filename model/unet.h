@@ -26,6 +26,7 @@
 #include "common/choices.h"
 #include "model/replica_group.h"
 #include "model/depth_fusion.h"
+#include "model/illuminant_reader.h"
 #include "model/spectral_wiener.h"
 
 namespace hsd::model {
@@ -81,6 +82,14 @@ struct NetOptions {
   // brightness (depth_fusion.h); training mode is unchanged.
   bool fuse_defocus_reader = false;
   FusionSettings fusion;  // its settings (model.fusion_*)
+  // true (needs residual_spectral_wiener): in eval mode the spectral Wiener
+  // base uses, for each image, the prior mixed under the posterior of the
+  // training illuminants given that image (illuminant_reader.h; moments from
+  // set_illuminant_moments) instead of the equal-weight mixture in the
+  // buffers; the spectral readers keep the buffers' prior, and training mode
+  // is unchanged.
+  bool read_illuminant = false;
+  IlluminantReaderSettings illuminant_reader;  // its settings (model.illuminant_*)
   // The rendering layers [m] (optics.depths_m, set by net_options): K for the
   // cost volume and the reader's depths.
   std::vector<double> layer_depths_m;
@@ -146,6 +155,18 @@ class HsdNetImpl : public torch::nn::Module {
   const torch::Tensor& band_psf() const { return band_psf_; }
   // The prior in the buffers (float32; its psd_exponent the default).
   SpectralPrior spectral_prior() const { return {sw_mean_, sw_cov_, sw_noise_var_.item<double>()}; }
+  // The per-illuminant moments of the illuminant reader (read_illuminant; the
+  // owner's, from the training scenes, as the buffers' prior; not buffers,
+  // so checkpoints of either setting load under the other).
+  void set_illuminant_moments(const IlluminantMoments& m);
+  const IlluminantMoments& illuminant_moments() const { return illum_; }
+  // image [B, 3, H, W] -> the reader's posterior over the illuminants [B, K]
+  // (float64), with the band energies of the current band PSFs.
+  torch::Tensor illuminant_posterior(const torch::Tensor& image) const;
+  // The prior the spectral Wiener base uses for image [1, 3, H, W]: the
+  // buffers' in training mode or without read_illuminant, else the posterior
+  // mixture.
+  SpectralPrior prior_for(const torch::Tensor& image) const;
   // image [B, 3, H, W] -> the spectral Wiener cube [B, L, H, W] (float32).
   torch::Tensor spectral_wiener(const torch::Tensor& image) const;
   const NetOptions& options() const { return opt_; }
@@ -178,6 +199,7 @@ class HsdNetImpl : public torch::nn::Module {
   torch::Tensor preinverse_psf_;  // [K, C, P, P] or undefined
   torch::Tensor band_psf_;        // [L, K, P, P] or undefined
   torch::Tensor sw_mean_, sw_cov_, sw_noise_var_, sw_omega_;  // buffers (residual_spectral_wiener)
+  IlluminantMoments illum_;  // read_illuminant
 };
 TORCH_MODULE(HsdNet);
 

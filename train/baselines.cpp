@@ -42,6 +42,12 @@ model::SpectralPrior training_spectral_prior(const std::vector<data::LoadedScene
   return p;
 }
 
+model::IlluminantMoments training_illuminant_moments(const std::vector<data::LoadedScene>& train_scenes, const Config& cfg) {
+  const data::IlluminantBank bank(cfg.data.illuminants, cfg.optics.wavelengths_m(), cfg.optics.band_width_m());
+  const data::ReflectanceMoments r = data::reflectance_moments(train_scenes);
+  return model::illuminant_moments(r.mean, r.second, bank.spectra(), cfg.data.intensity_min, cfg.data.intensity_max);
+}
+
 torch::Tensor constant_depth_map(const torch::Tensor& like, double inv_depth_per_m) {
   if (!(inv_depth_per_m > 0)) throw InputError("constant-depth baseline: the inverse depth must be > 0");
   return torch::full_like(like, 1.0 / inv_depth_per_m);

@@ -30,6 +30,7 @@
 
 #include "common/config.h"
 #include "data/dataset.h"
+#include "model/illuminant_reader.h"
 #include "model/spectral_wiener.h"
 #include "optics/sensor.h"
 
@@ -55,6 +56,11 @@ torch::Tensor wiener_upsampling_cube(const torch::Tensor& image, const torch::Te
 // mean image level (model::mean_noise_variance).
 model::SpectralPrior training_spectral_prior(const std::vector<data::LoadedScene>& train_scenes, const Config& cfg,
                                              const optics::SensorModel& sensor);
+
+// The illuminant reader's moments (model/illuminant_reader.h): the training
+// reflectance's, lit one illuminant of data.illuminants at a time, with the
+// training intensity range. InputError when a training scene is a radiance.
+model::IlluminantMoments training_illuminant_moments(const std::vector<data::LoadedScene>& train_scenes, const Config& cfg);
 
 // The constant-depth map: depth_m [.., H, W] of `like`'s shape, every value 1 / inv_depth [m].
 torch::Tensor constant_depth_map(const torch::Tensor& like, double inv_depth_per_m);

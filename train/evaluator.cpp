@@ -67,6 +67,7 @@ EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& spli
                     const optics::PsfProvider& camera_psf, bool calibrated) {
   trainer.net()->eval();
   trainer.refresh_preinverse();
+  trainer.ensure_illuminant_moments();  // model.read_illuminant: from the training split
   torch::Tensor model_psf;  // the PSFs the network's inputs and the Wiener baselines use (with a camera_psf)
   if (camera_psf && !calibrated) model_psf = trainer.psf_stack();
   if (camera_psf && calibrated) {  // the network's linear inputs from the camera's PSFs
@@ -78,7 +79,12 @@ EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& spli
   }
   auto net = [&](const torch::Tensor& x) {
     const model::NetOutput o = trainer.net()->forward(x);
-    return Reconstruction(o.hs, o.depth_m, o.network_depth_m, o.reader_depth_m);
+    Reconstruction r(o.hs, o.depth_m, o.network_depth_m, o.reader_depth_m);
+    if (trainer.net()->options().read_illuminant) {  // what the reader adds: its base alone, and the light it read
+      r.base_hs = trainer.net()->spectral_wiener(x);
+      r.illuminant_weights = trainer.net()->illuminant_posterior(x);
+    }
+    return r;
   };
   const torch::Tensor model_map = trainer.net()->options().learned_spectral_map
                                       ? trainer.net()->upsampling_weights().detach().cpu()
@@ -181,6 +187,16 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
       const torch::Tensor mb = model::spectral_upsample(model_map.to(torch::kFloat32), base)[0];
       m.model_base_hs_psnr_db = psnr_db(mb, radiance, m.data_range, valid);
       m.model_base_hs_ssim = ssim(mb, radiance, m.data_range, valid);
+    } else if (out.base_hs.defined()) {  // the base the reconstructor gave (the illuminant reader's spectral Wiener cube)
+      const torch::Tensor mb = out.base_hs[0].cpu();
+      m.model_base_hs_psnr_db = psnr_db(mb, radiance, m.data_range, valid);
+      m.model_base_hs_ssim = ssim(mb, radiance, m.data_range, valid);
+    }
+    if (out.illuminant_weights.defined() && out.illuminant_weights.size(-1) == int64_t(cfg.data.illuminants.size())) {
+      const torch::Tensor w = out.illuminant_weights.reshape({-1}).cpu();
+      const int64_t k = w.argmax().item<int64_t>();
+      m.illuminant_read = cfg.data.illuminants[size_t(k)];
+      m.illuminant_read_weight = w[k].item<double>();
     }
     if (constant_known) {
       const DepthErrors dc = depth_errors(constant_depth_map(sc.depth_m, baseline_inv_depth), sc.depth_m, valid);
@@ -275,7 +291,7 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
       a.baseline_spectral_wiener_hs_psnr_db += m.baseline_spectral_wiener_hs_psnr_db / n,
           a.baseline_spectral_wiener_hs_ssim += m.baseline_spectral_wiener_hs_ssim / n;
   }
-  if (model_map.defined()) {
+  if (!res.scenes.empty() && std::isfinite(res.scenes.front().model_base_hs_psnr_db)) {
     a.model_base_hs_psnr_db = a.model_base_hs_ssim = 0.0;
     for (const auto& m : res.scenes) a.model_base_hs_psnr_db += m.model_base_hs_psnr_db / n, a.model_base_hs_ssim += m.model_base_hs_ssim / n;
   }
@@ -329,6 +345,10 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
       j["model_base_hs_psnr_db"] = m.model_base_hs_psnr_db;
       j["model_base_hs_ssim"] = m.model_base_hs_ssim;
     }
+    if (!m.illuminant_read.empty()) {
+      j["illuminant_read"] = m.illuminant_read;
+      j["illuminant_read_weight"] = m.illuminant_read_weight;
+    }
     if (std::isfinite(m.baseline_constant_depth_rmse_m)) {
       j["baseline_constant_depth_rmse_m"] = m.baseline_constant_depth_rmse_m;
       j["baseline_constant_depth_mae_m"] = m.baseline_constant_depth_mae_m;
@@ -370,7 +390,12 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
                                       "cube from the image under the training radiance's spectral mean and covariance, "
                                       "every depth layer equally likely, no network)" : "") +
                std::string(model_map.defined() ? ", the network's residual base alone (model_base_*: its learned spectral "
-                                                  "map on its residual base, no U-Net)" : "") +
+                                                  "map on its residual base, no U-Net)"
+                           : cfg.model.read_illuminant ? ", the network's residual base alone (model_base_*: the spectral "
+                                                         "Wiener cube under the posterior of the training illuminants the "
+                                                         "illuminant reader gives for each scene, no U-Net; illuminant_read: "
+                                                         "its most probable light per scene)"
+                                                       : "") +
                " and one constant depth (the training split's median inverse depth); reference_oracle_depth_rmse_m: the "
                "resolution oracle (the true inverse depth averaged over a w x w box of valid pixels, w in px), a ruler "
                "for how fine the scenes' depth is, not a baseline; depth_effective_resolution_px: the box whose oracle "
@@ -407,8 +432,10 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
   if (std::isfinite(a.baseline_spectral_wiener_hs_psnr_db)) md += "\nMean over the scenes, " + spectral_wiener_summary(a) + ".\n";
   if (std::isfinite(a.model_base_hs_psnr_db)) {
     std::snprintf(buf, sizeof buf,
-                  "\nThe network's residual base alone (its learned spectral map on its residual base, no U-Net), mean "
+                  "\nThe network's residual base alone (%s, no U-Net), mean "
                   "over the scenes: HS PSNR %.2f dB, SSIM %.4f; the U-Net adds %+.2f dB to it.\n",
+                  model_map.defined() ? "its learned spectral map on its residual base"
+                                      : "the spectral Wiener cube under the light the illuminant reader read",
                   a.model_base_hs_psnr_db, a.model_base_hs_ssim, a.hs_psnr_db - a.model_base_hs_psnr_db);
     md += buf;
   }

@@ -30,9 +30,14 @@ struct SceneMetrics {
   double baseline_wiener_hs_psnr_db = 0, baseline_wiener_hs_ssim = 0;  // Wiener deconvolution + upsampling
   // The spectral Wiener (LMMSE) cube (baselines.h); NaN when no prior is known.
   double baseline_spectral_wiener_hs_psnr_db = std::nan(""), baseline_spectral_wiener_hs_ssim = std::nan("");
-  // The network's residual base alone (model.spectral_map = "learned": its
-  // learned map on its base, no U-Net); NaN when the map is the fixed one.
+  // The network's residual base alone, no U-Net (model.spectral_map =
+  // "learned": its learned map on its base; model.read_illuminant: the
+  // spectral Wiener cube under the light read); NaN otherwise.
   double model_base_hs_psnr_db = std::nan(""), model_base_hs_ssim = std::nan("");
+  // The illuminant reader's most probable light (a name of data.illuminants)
+  // and its posterior weight; empty without model.read_illuminant.
+  std::string illuminant_read;
+  double illuminant_read_weight = std::nan("");
   // The resolution oracle (baselines.h) on the same pixels, one RMSE [m] per
   // window of kOracleWindowsPx; on the mean, the window whose oracle RMSE
   // equals the model's (its effective depth resolution, px; +inf: coarser than all).
@@ -80,6 +85,10 @@ struct EvalResult {
 struct Reconstruction {
   torch::Tensor hs, depth_m;
   torch::Tensor network_depth_m, reader_depth_m;
+  // Optional: the network's residual base alone [B, L, H, W] (scored as
+  // model_base_*), and the illuminant reader's posterior [B, K] over
+  // data.illuminants (model.read_illuminant; written per scene).
+  torch::Tensor base_hs, illuminant_weights;
   Reconstruction(std::pair<torch::Tensor, torch::Tensor> p) : hs(std::move(p.first)), depth_m(std::move(p.second)) {}
   Reconstruction(torch::Tensor h, torch::Tensor d, torch::Tensor network = {}, torch::Tensor reader = {})
       : hs(std::move(h)), depth_m(std::move(d)), network_depth_m(std::move(network)), reader_depth_m(std::move(reader)) {}

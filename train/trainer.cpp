@@ -16,6 +16,7 @@
 #include "common/log.h"
 #include "common/tensor_io.h"
 #include "common/text_format.h"
+#include "data/manifest.h"
 #include "data/synthetic_dataset.h"
 #include "model/net_options.h"
 #include "model/spectral_upsampling.h"
@@ -287,6 +288,7 @@ void Trainer::attach_data() {
   if (net_->options().residual_spectral_wiener) {  // the prior: the training radiance's moments, the sensor's noise
     const model::SpectralPrior p = training_spectral_prior(train_scenes_, cfg_, sensor_);
     net_->set_spectral_prior(p.mean, p.covariance, p.noise_var, sensor_.omega.to(torch::kFloat32));
+    if (net_->options().read_illuminant) net_->set_illuminant_moments(training_illuminant_moments(train_scenes_, cfg_));
   }
   const int64_t rendered = cfg_.data.patch_size_px + 2 * margin_;
   sampler_ = std::make_unique<data::PatchSampler>(train_scenes_, rendered);
@@ -557,6 +559,16 @@ void Trainer::save_checkpoint(const std::string& path, int64_t next_step) {
   const std::vector<std::string> names = trained_names();
   for (size_t i = 0; i < average_.size(); ++i) live.emplace_back("live." + names[i], average_[i]);
   write_checkpoint(path, doe_, net_, *opt_, baseline_inv_depth_, next_step, live);
+}
+
+void Trainer::ensure_illuminant_moments() {
+  if (!net_->options().read_illuminant || net_->illuminant_moments().mean.defined()) return;
+  if (!data::has_manifest(cfg_.data.root) || data::read_manifest(cfg_.data.root).split("train").empty())
+    input_error(cfg_.data.root, "model.read_illuminant needs the training split the model was trained on (its "
+                                "reflectance statistics, data.root); there is none");
+  const auto scenes = data::load_split(cfg_.data.root, "train", cfg_.optics.wavelengths_m(), cfg_.optics.band_width_m(),
+                                       cfg_.data.loader_threads);
+  net_->set_illuminant_moments(training_illuminant_moments(scenes, cfg_));
 }
 
 int64_t Trainer::load_checkpoint(const std::string& path) {

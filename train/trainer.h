@@ -119,6 +119,11 @@ class Trainer {
   // PSFs; called by validation, pictures, evaluation and after a checkpoint
   // is loaded. Training steps set their own (with the gradient).
   void refresh_preinverse();
+  // With model.read_illuminant: gives the network the illuminant reader's
+  // moments from the training split of data.root when it has none (a loaded
+  // checkpoint carries only the equal-weight prior); InputError naming
+  // data.root when there is no training split. No-op otherwise.
+  void ensure_illuminant_moments();
   // The constant-depth baseline's inverse depth [1/m]: the training split's
   // median (attach_data, or a checkpoint that stores it); NaN when unknown.
   double baseline_inv_depth() const { return baseline_inv_depth_; }

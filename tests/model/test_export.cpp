@@ -170,10 +170,12 @@ TEST_CASE("export: a network with the spectral Wiener residual exports with its 
   o.depth_bins = GENERATE(0, 5);             // model.depth_bins: the sigmoid head or the bins' soft argmax
   o.defocus_cost = GENERATE(DefocusCost::none, DefocusCost::spectral);  // the spectral cost volume as input too
   o.fuse_defocus_reader = GENERATE(false, true);                         // the reader's depth fused with the head's
+  o.read_illuminant = GENERATE(false, true);                             // each image's prior from the light it shows
+  o.illuminant_reader = {8, 4};
   o.layer_depths_m = {0.6, 1.8};
   INFO("preinverse layers " << o.preinverse_layers << ", base as input " << o.base_as_input << ", depth bins "
                             << o.depth_bins << ", defocus cost " << choice_name(o.defocus_cost) << ", fused "
-                            << o.fuse_defocus_reader);
+                            << o.fuse_defocus_reader << ", illuminant read " << o.read_illuminant);
   model::HsdNet net(o, torch::rand({4, 3}));
   net->eval();
   const torch::Tensor a = torch::rand({4, 4});
@@ -182,6 +184,11 @@ TEST_CASE("export: a network with the spectral Wiener residual exports with its 
   torch::Tensor psf = torch::rand({4, 2, 9, 9});
   psf = psf / psf.sum({2, 3}, true);
   if (o.preinverse_layers > 0) net->set_preinverse_psf(torch::rand({2, 3, 9, 9}) / 81.0);
+  if (o.read_illuminant) {  // three lights over a reflectance with random moments
+    const torch::Tensor r = torch::rand({4, 16}, torch::kFloat64) * 0.5;
+    net->set_illuminant_moments(model::illuminant_moments(r.mean(1), torch::matmul(r, r.t()) / 16.0,
+                                                          0.2 + torch::rand({3, 4}, torch::kFloat64), 0.5, 1.5));
+  }
   CHECK_THROWS_AS(model::export_torchscript(net, {{400e-9, 450e-9, 500e-9, 550e-9}, {}, {}}), InputError);  // no band PSFs yet
   net->set_band_psf(psf);
   torch::NoGradGuard ng;
