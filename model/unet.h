@@ -159,6 +159,9 @@ class HsdNetImpl : public torch::nn::Module {
   // owner's, from the training scenes, as the buffers' prior; not buffers,
   // so checkpoints of either setting load under the other).
   void set_illuminant_moments(const IlluminantMoments& m);
+  // Turns the reader off (the buffers' equal-weight prior), for an owner
+  // that has no training reflectance to give it moments from.
+  void disable_illuminant_reader() { opt_.read_illuminant = false; }
   const IlluminantMoments& illuminant_moments() const { return illum_; }
   // image [B, 3, H, W] -> the reader's posterior over the illuminants [B, K]
   // (float64), with the band energies of the current band PSFs.

@@ -374,6 +374,7 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
       j["depth_effective_resolution_px"] = std::isfinite(m.depth_effective_resolution_px) ? Json(m.depth_effective_resolution_px) : Json();
     return j;
   };
+  const bool model_base_read = !model_map.defined() && std::isfinite(a.model_base_hs_psnr_db);  // the illuminant reader's base
   Json j = row(a);
   j.erase("file");
   j["split"] = split;
@@ -391,7 +392,7 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
                                       "every depth layer equally likely, no network)" : "") +
                std::string(model_map.defined() ? ", the network's residual base alone (model_base_*: its learned spectral "
                                                   "map on its residual base, no U-Net)"
-                           : cfg.model.read_illuminant ? ", the network's residual base alone (model_base_*: the spectral "
+                           : model_base_read ? ", the network's residual base alone (model_base_*: the spectral "
                                                          "Wiener cube under the posterior of the training illuminants the "
                                                          "illuminant reader gives for each scene, no U-Net; illuminant_read: "
                                                          "its most probable light per scene)"

@@ -288,7 +288,7 @@ void Trainer::attach_data() {
   if (net_->options().residual_spectral_wiener) {  // the prior: the training radiance's moments, the sensor's noise
     const model::SpectralPrior p = training_spectral_prior(train_scenes_, cfg_, sensor_);
     net_->set_spectral_prior(p.mean, p.covariance, p.noise_var, sensor_.omega.to(torch::kFloat32));
-    if (net_->options().read_illuminant) net_->set_illuminant_moments(training_illuminant_moments(train_scenes_, cfg_));
+    if (net_->options().read_illuminant) give_illuminant_moments(train_scenes_);
   }
   const int64_t rendered = cfg_.data.patch_size_px + 2 * margin_;
   sampler_ = std::make_unique<data::PatchSampler>(train_scenes_, rendered);
@@ -563,12 +563,25 @@ void Trainer::save_checkpoint(const std::string& path, int64_t next_step) {
 
 void Trainer::ensure_illuminant_moments() {
   if (!net_->options().read_illuminant || net_->illuminant_moments().mean.defined()) return;
-  if (!data::has_manifest(cfg_.data.root) || data::read_manifest(cfg_.data.root).split("train").empty())
-    input_error(cfg_.data.root, "model.read_illuminant needs the training split the model was trained on (its "
-                                "reflectance statistics, data.root); there is none");
-  const auto scenes = data::load_split(cfg_.data.root, "train", cfg_.optics.wavelengths_m(), cfg_.optics.band_width_m(),
-                                       cfg_.data.loader_threads);
-  net_->set_illuminant_moments(training_illuminant_moments(scenes, cfg_));
+  if (!data::has_manifest(cfg_.data.root) || data::read_manifest(cfg_.data.root).split("train").empty()) {
+    log::warn("model.read_illuminant: " + cfg_.data.root + " has no training split to read the reflectance statistics "
+              "from; the cube's base keeps the equal-weight prior of the training lights");
+    net_->disable_illuminant_reader();
+    return;
+  }
+  give_illuminant_moments(data::load_split(cfg_.data.root, "train", cfg_.optics.wavelengths_m(),
+                                           cfg_.optics.band_width_m(), cfg_.data.loader_threads));
+}
+
+void Trainer::give_illuminant_moments(const std::vector<data::LoadedScene>& train_scenes) {
+  for (const auto& sc : train_scenes)
+    if (sc.scene.kind != data::SpectralKind::Reflectance) {
+      log::warn("model.read_illuminant: " + sc.file + " of the training split is a radiance, not a reflectance (its "
+                "light cannot be taken out); the cube's base keeps the equal-weight prior of the training lights");
+      net_->disable_illuminant_reader();
+      return;
+    }
+  net_->set_illuminant_moments(training_illuminant_moments(train_scenes, cfg_));
 }
 
 int64_t Trainer::load_checkpoint(const std::string& path) {

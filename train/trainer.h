@@ -121,8 +121,10 @@ class Trainer {
   void refresh_preinverse();
   // With model.read_illuminant: gives the network the illuminant reader's
   // moments from the training split of data.root when it has none (a loaded
-  // checkpoint carries only the equal-weight prior); InputError naming
-  // data.root when there is no training split. No-op otherwise.
+  // checkpoint carries only the equal-weight prior). When data.root has no
+  // training split of reflectance scenes (a held-out set such as hsd_scenes
+  // --real), warns and turns the reader off: the base keeps the equal
+  // weights. No-op otherwise.
   void ensure_illuminant_moments();
   // The constant-depth baseline's inverse depth [1/m]: the training split's
   // median (attach_data, or a checkpoint that stores it); NaN when unknown.
@@ -135,6 +137,9 @@ class Trainer {
   const optics::SensorModel& sensor() const { return sensor_; }
 
  private:
+  // The reader's moments from these (reflectance) training scenes, or the
+  // reader turned off with a warning when one is a radiance.
+  void give_illuminant_moments(const std::vector<data::LoadedScene>& train_scenes);
   // The pieces of step(): the learning rates of step k (into the optimizer),
   // the sensor image of the batch (with the pre-inversion's RGB PSFs when the
   // network has one), the global batch's loss terms (total, cube, depth, TV;
