@@ -280,11 +280,12 @@ void define_illuminant_reader(torch::jit::Module& m, HsdNet& net) {
     << "        Q = torch.mm(b.t(), b) / J\n"
     << "        Om = self.p_sw_omega.double()\n"
     << "        G = Om * self.sw_psf.double().sum([2, 3]).mean(1).view([1, -1])\n"
-    << "        mu = self.il_mean\n"
-    << "        C = self.il_second - mu.unsqueeze(2) * mu.unsqueeze(1)\n"
+    << "        mu = self.il_mean.double()\n"
+    << "        R2 = self.il_second.double()\n"
+    << "        C = R2 - mu.unsqueeze(2) * mu.unsqueeze(1)\n"
     << "        g = torch.mm(mu, G.t())\n"
     << "        A = torch.matmul(torch.matmul(G, C), G.t())\n"
-    << "        s = self.il_grid\n"
+    << "        s = self.il_grid.double()\n"
     << "        nv = float(self.p_sw_noise_var.item())\n"
     << "        tau2 = nv / float(bs * bs) + " << c10::str(kIlluminantModelFloor) << " * (float(Q.diagonal().mean().item()) + 1e-300)\n"
     << "        s2 = (s * s).view([1, -1, 1, 1])\n"
@@ -298,8 +299,8 @@ void define_illuminant_reader(torch::jit::Module& m, HsdNet& net) {
     << "        ll = torch.max(-0.5 * J * (logdet + quad), 1)[0]\n"
     << "        Jn = float((H // bs) * (W // bs))\n"
     << "        wts = torch.softmax(ll * (" << c10::str(opt.illuminant_reader.effective_blocks) << " / max(Jn, 1.0)), 0)\n"
-    << "        mw = " << c10::str(es) << " * torch.mv(self.il_mean.t(), wts)\n"
-    << "        M = " << c10::str(es2) << " * (wts.view([-1, 1, 1]) * self.il_second).sum(0)\n"
+    << "        mw = " << c10::str(es) << " * torch.mv(mu.t(), wts)\n"
+    << "        M = " << c10::str(es2) << " * (wts.view([-1, 1, 1]) * R2).sum(0)\n"
     << "        cov = M - torch.outer(mw, mw)\n"
     << "        cov = 0.5 * (cov + cov.t())\n"
     << "        L = cov.size(0)\n"
@@ -444,9 +445,9 @@ void set_reconstructor_precision(torch::jit::Module& m, c10::ScalarType dtype) {
   torch::NoGradGuard ng;
   auto convert = [&](const std::string& name, torch::Tensor t) {
     if (name.find("upsampling") != std::string::npos || name.find("preinverse") != std::string::npos ||
-        name.find("sw_") != std::string::npos ||
+        name.find("sw_") != std::string::npos || name.rfind("il_", 0) == 0 ||
         !t.is_floating_point())
-      return;  // the residual, the pre-inversion and the spectral Wiener base stay float32
+      return;  // the residual, the pre-inversion, the spectral Wiener base and the illuminant reader keep their dtype
     torch::Tensor v = t.detach().to(dtype);
     if (v.dim() == 4) v = v.contiguous(at::MemoryFormat::ChannelsLast);
     t.set_data(v);

@@ -199,7 +199,12 @@ TEST_CASE("export: a network with the spectral Wiener residual exports with its 
   const auto [hs, d] = model::run_reconstructor(loaded, x);
   CHECK((hs - ref.hs).abs().max().item<double>() <= 1e-5 * ref.hs.abs().max().item<double>());
   CHECK((d - ref.depth_m).abs().max().item<double>() <= 1e-5 * ref.depth_m.abs().max().item<double>());
+  model::set_reconstructor_precision(loaded, torch::kFloat32);  // as hsd_reconstruct sets it: the same answer
+  const auto [hs32, d32] = model::run_reconstructor(loaded, x);
+  CHECK((hs32 - ref.hs).abs().max().item<double>() <= 1e-5 * ref.hs.abs().max().item<double>());
+  CHECK((d32 - ref.depth_m).abs().max().item<double>() <= 1e-5 * ref.depth_m.abs().max().item<double>());
   model::set_reconstructor_precision(loaded, torch::kBFloat16);
   CHECK(loaded.attr("sw_psf").toTensor().scalar_type() == torch::kFloat32);
+  if (o.read_illuminant) CHECK(loaded.attr("il_second").toTensor().scalar_type() == torch::kFloat64);
   CHECK(loaded.attr("p_sw_covariance").toTensor().scalar_type() == torch::kFloat32);
 }
