@@ -78,12 +78,12 @@ EvalResult evaluate(Trainer& trainer, const Config& cfg, const std::string& spli
     if (trainer.net()->options().residual_spectral_wiener) trainer.net()->set_band_psf(model_psf);
   }
   auto net = [&](const torch::Tensor& x) {
-    const model::NetOutput o = trainer.net()->forward(x);
+    // With the illuminant reader, its base is computed once: handed to the network and scored alone.
+    const bool read = trainer.net()->options().read_illuminant;
+    const torch::Tensor base = read ? trainer.net()->spectral_wiener(x) : torch::Tensor();
+    const model::NetOutput o = trainer.net()->forward(x, {}, base);
     Reconstruction r(o.hs, o.depth_m, o.network_depth_m, o.reader_depth_m);
-    if (trainer.net()->options().read_illuminant) {  // what the reader adds: its base alone, and the light it read
-      r.base_hs = trainer.net()->spectral_wiener(x);
-      r.illuminant_weights = trainer.net()->illuminant_posterior(x);
-    }
+    if (read) r.base_hs = base, r.illuminant_weights = trainer.net()->illuminant_posterior(x);
     return r;
   };
   const torch::Tensor model_map = trainer.net()->options().learned_spectral_map
