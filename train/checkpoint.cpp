@@ -55,6 +55,12 @@ const char* kOtherConfig = "a checkpoint of another config?";
 
 }  // namespace
 
+NamedTensors illuminant_entries(const model::IlluminantMoments& m) {
+  return {{"illuminant.mean", m.mean.to(torch::kFloat64)},
+          {"illuminant.second", m.second.to(torch::kFloat64)},
+          {"illuminant.intensity_range", torch::tensor({m.intensity_min, m.intensity_max}, torch::kFloat64)}};
+}
+
 void write_checkpoint(const std::string& path, const optics::Doe& doe, const model::HsdNet& net, const torch::optim::Adam& adam,
                       double baseline_inv_depth, int64_t next_step, const NamedTensors& extra) {
   TensorDict d;
@@ -115,12 +121,31 @@ int64_t read_checkpoint(const std::string& path, TrainingState& s) {
   if (live_found != 0)
     for (const auto& [name, dst] : s.live) copies.emplace_back(dst, d.entry(name, dst.sizes(), kOtherConfig));
   s.live_read = live_found != 0;
+  // The illuminant reader's moments: all three entries or none.
+  model::IlluminantMoments illuminant;
+  const std::vector<std::string> il_names{"illuminant.mean", "illuminant.second", "illuminant.intensity_range"};
+  size_t il_found = 0;
+  for (const auto& n : il_names) il_found += d.d.count(n);
+  if (il_found != 0 && il_found != il_names.size())
+    input_error(path, "holds " + std::to_string(il_found) + " of the 3 illuminant.* entries (the illuminant reader's moments): damaged?");
+  if (il_found != 0) {
+    const int64_t K = s.illuminant_count, L = s.net->options().bands;
+    const char* hint = "a checkpoint of another config? K = data.illuminants, L = optics.wavelengths_nm";
+    illuminant.mean = d.entry("illuminant.mean", {K, L}, hint).to(torch::kFloat64).clone();
+    illuminant.second = d.entry("illuminant.second", {K, L, L}, hint).to(torch::kFloat64).clone();
+    const torch::Tensor range = d.entry("illuminant.intensity_range", {2}, "two numbers: min, max").to(torch::kFloat64);
+    illuminant.intensity_min = range[0].item<double>(), illuminant.intensity_max = range[1].item<double>();
+    if (!(illuminant.intensity_min > 0 && illuminant.intensity_max >= illuminant.intensity_min))
+      input_error(path, "illuminant.intensity_range must satisfy 0 < min <= max");
+  }
   // All checked: replace the state.
   apply(copies);
   auto& state = s.adam.state();
   state.clear();
   for (auto& [p, st] : adam) state[c10::guts::to_string(p.unsafeGetTensorImpl())] = std::move(st);
   if (std::isfinite(baseline)) s.baseline_inv_depth = baseline;
+  s.illuminant_read = il_found != 0;
+  if (s.illuminant_read) s.illuminant = illuminant;
   return next;
 }
 

@@ -3,7 +3,11 @@
 // serves as a height-map file), the network ("net.<name>": parameters and
 // buffers), Adam's moments per parameter ("adam.<group>.<index>.exp_avg",
 // "exp_avg_sq", "step") and the constant-depth baseline's inverse depth
-// ("baseline.inv_depth_per_m", when known). With weight averaging
+// ("baseline.inv_depth_per_m", when known), and the illuminant reader's
+// moments of the training split ("illuminant.mean" [K, L], "illuminant.second"
+// [K, L, L], "illuminant.intensity_range" [2]: model/illuminant_reader.h;
+// when the network has them), so a model reads the light with the statistics
+// it was trained on whatever data it is evaluated on. With weight averaging
 // (train.ema_decay) the DOE and network entries are the averaged model, and
 // the optimiser's current weights are "live.<name>" (name: "doe.raw" or
 // "net.<parameter>"), so a resumed run continues exactly. Reading checks every entry
@@ -32,10 +36,19 @@ struct TrainingState {
   // read when the file has them (all, or it is an InputError), live_read says so.
   std::vector<std::pair<std::string, torch::Tensor>> live = {};
   bool live_read = false;
+  // The illuminant reader's moments, read (all three entries, checked: K =
+  // illuminant_count, L = the network's bands) when the file has them;
+  // illuminant_read says so. Files written before they were stored have none.
+  int64_t illuminant_count = 0;
+  model::IlluminantMoments illuminant = {};
+  bool illuminant_read = false;
 };
 
 // Extra entries written beside the model: (name, tensor), e.g. "live.net.<parameter>".
 using NamedTensors = std::vector<std::pair<std::string, torch::Tensor>>;
+
+// The checkpoint entries of the illuminant reader's moments (names above).
+NamedTensors illuminant_entries(const model::IlluminantMoments& m);
 
 // Writes the state and next_step to path, atomically.
 void write_checkpoint(const std::string& path, const optics::Doe& doe, const model::HsdNet& net, const torch::optim::Adam& adam,

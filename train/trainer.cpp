@@ -288,7 +288,7 @@ void Trainer::attach_data() {
   if (net_->options().residual_spectral_wiener) {  // the prior: the training radiance's moments, the sensor's noise
     const model::SpectralPrior p = training_spectral_prior(train_scenes_, cfg_, sensor_);
     net_->set_spectral_prior(p.mean, p.covariance, p.noise_var, sensor_.omega.to(torch::kFloat32));
-    if (net_->options().read_illuminant) give_illuminant_moments(train_scenes_);
+    give_illuminant_moments(train_scenes_);  // used with model.read_illuminant; kept in checkpoints either way
   }
   const int64_t rendered = cfg_.data.patch_size_px + 2 * margin_;
   sampler_ = std::make_unique<data::PatchSampler>(train_scenes_, rendered);
@@ -558,6 +558,8 @@ void Trainer::save_checkpoint(const std::string& path, int64_t next_step) {
   NamedTensors live;
   const std::vector<std::string> names = trained_names();
   for (size_t i = 0; i < average_.size(); ++i) live.emplace_back("live." + names[i], average_[i]);
+  if (net_->illuminant_moments().mean.defined())
+    for (auto& e : illuminant_entries(net_->illuminant_moments())) live.push_back(std::move(e));
   write_checkpoint(path, doe_, net_, *opt_, baseline_inv_depth_, next_step, live);
 }
 
@@ -576,6 +578,7 @@ void Trainer::ensure_illuminant_moments() {
 void Trainer::give_illuminant_moments(const std::vector<data::LoadedScene>& train_scenes) {
   for (const auto& sc : train_scenes)
     if (sc.scene.kind != data::SpectralKind::Reflectance) {
+      if (!net_->options().read_illuminant) return;
       log::warn("model.read_illuminant: " + sc.file + " of the training split is a radiance, not a reflectance (its "
                 "light cannot be taken out); the cube's base keeps the equal-weight prior of the training lights");
       net_->disable_illuminant_reader();
@@ -586,6 +589,7 @@ void Trainer::give_illuminant_moments(const std::vector<data::LoadedScene>& trai
 
 int64_t Trainer::load_checkpoint(const std::string& path) {
   TrainingState state{doe_, net_, *opt_, baseline_inv_depth_};
+  state.illuminant_count = int64_t(cfg_.data.illuminants.size());
   std::vector<torch::Tensor> live;  // the optimiser's weights, when the file has them
   if (cfg_.train.ema_decay > 0.0) {
     const std::vector<std::string> names = trained_names();
@@ -593,6 +597,7 @@ int64_t Trainer::load_checkpoint(const std::string& path) {
     for (size_t i = 0; i < live.size(); ++i) state.live.emplace_back("live." + names[i], live[i]);
   }
   const int64_t next = read_checkpoint(path, state);
+  if (state.illuminant_read) net_->set_illuminant_moments(state.illuminant);  // the statistics it was trained with
   if (cfg_.train.ema_decay > 0.0) {  // the parameters hold the file's model; its optimiser's weights go aside
     if (state.live_read)
       average_ = live;

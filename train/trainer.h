@@ -120,11 +120,11 @@ class Trainer {
   // is loaded. Training steps set their own (with the gradient).
   void refresh_preinverse();
   // With model.read_illuminant: gives the network the illuminant reader's
-  // moments from the training split of data.root when it has none (a loaded
-  // checkpoint carries only the equal-weight prior). When data.root has no
-  // training split of reflectance scenes (a held-out set such as hsd_scenes
-  // --real), warns and turns the reader off: the base keeps the equal
-  // weights. No-op otherwise.
+  // moments from the training split of data.root when it has none (a
+  // checkpoint written before checkpoints stored them). When data.root has
+  // no training split of reflectance scenes (a held-out set such as
+  // hsd_scenes --real), warns and turns the reader off: the base keeps the
+  // equal weights. No-op otherwise, and for a checkpoint that carries them.
   void ensure_illuminant_moments();
   // The constant-depth baseline's inverse depth [1/m]: the training split's
   // median (attach_data, or a checkpoint that stores it); NaN when unknown.

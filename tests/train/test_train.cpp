@@ -207,6 +207,68 @@ TEST_CASE("train: checkpoint then resume equals an uninterrupted run", "[train]"
   CHECK_THROWS_WITH(other.load_checkpoint((dir / "ck.pt").string()), Catch::Contains("ck.pt"));
 }
 
+TEST_CASE("train: checkpoints carry the illuminant reader's moments; a set without a training split reads the light with them, an older checkpoint falls back to equal weights",
+          "[train][illuminant_reader]") {
+  const fs::path dir = fs::temp_directory_path() / "hsd_test_train_illuminant_ck";
+  fs::remove_all(dir);
+  const std::vector<std::string> reader{"model.residual=\"spectral_wiener\"", "model.read_illuminant=true"};
+  train::Trainer a(tiny_training((dir / "data").string(), reader));
+  a.attach_data();  // the moments from its training split
+  const model::IlluminantMoments& m = a.net()->illuminant_moments();
+  REQUIRE(m.mean.defined());
+  const std::string ck = (dir / "ck.pt").string();
+  a.save_checkpoint(ck, 1);
+  TensorDict d = load_tensor_dict(ck);
+  REQUIRE(d.count("illuminant.mean") == 1);
+  CHECK(d.at("illuminant.mean").equal(m.mean.to(torch::kFloat64)));
+  CHECK(d.at("illuminant.second").equal(m.second.to(torch::kFloat64)));
+  CHECK(d.at("illuminant.intensity_range")[1].item<double>() == m.intensity_max);
+
+  // Evaluated on a folder with no dataset (as hsd_eval --data on a set without a training split).
+  auto held_out = [&](std::vector<std::string> extra = {}) {
+    std::vector<std::string> o = reader;
+    for (auto& e : extra) o.push_back(e);
+    return tiny_training((dir / "no_data").string(), o);
+  };
+  train::Trainer b(held_out());
+  b.load_checkpoint(ck);
+  b.ensure_illuminant_moments();
+  CHECK(b.net()->options().read_illuminant);
+  CHECK(b.net()->illuminant_moments().mean.equal(m.mean.to(torch::kFloat64)));
+  CHECK(b.net()->illuminant_moments().intensity_min == m.intensity_min);
+
+  // A checkpoint written before the moments were stored: equal weights there.
+  TensorDict old = d;
+  for (const char* k : {"illuminant.mean", "illuminant.second", "illuminant.intensity_range"}) old.erase(k);
+  save_tensor_dict((dir / "old.pt").string(), old);
+  train::Trainer c(held_out());
+  c.load_checkpoint((dir / "old.pt").string());
+  CHECK_FALSE(c.net()->illuminant_moments().mean.defined());
+  c.ensure_illuminant_moments();
+  CHECK_FALSE(c.net()->options().read_illuminant);
+  // ... while on its own data it reads the moments from the training split, as training did.
+  train::Trainer c2(tiny_training((dir / "data").string(), reader));
+  c2.load_checkpoint((dir / "old.pt").string());
+  c2.ensure_illuminant_moments();
+  CHECK(c2.net()->options().read_illuminant);
+  CHECK(torch::allclose(c2.net()->illuminant_moments().second.to(torch::kFloat64), m.second.to(torch::kFloat64)));
+
+  // Damaged or foreign entries are refused naming the file and the entry.
+  TensorDict part = d;
+  part.erase("illuminant.second");
+  save_tensor_dict((dir / "part.pt").string(), part);
+  CHECK_THROWS_WITH(train::Trainer(held_out()).load_checkpoint((dir / "part.pt").string()),
+                    Catch::Contains("part.pt") && Catch::Contains("illuminant"));
+  TensorDict nan = d;
+  nan["illuminant.mean"] = nan.at("illuminant.mean").clone().fill_(std::nan(""));
+  save_tensor_dict((dir / "nan.pt").string(), nan);
+  CHECK_THROWS_WITH(train::Trainer(held_out()).load_checkpoint((dir / "nan.pt").string()),
+                    Catch::Contains("nan.pt") && Catch::Contains("illuminant.mean"));
+  CHECK_THROWS_WITH(train::Trainer(held_out({"data.illuminants=[\"D65\", \"A\"]"})).load_checkpoint(ck),
+                    Catch::Contains("ck.pt") && Catch::Contains("illuminant.mean"));
+  fs::remove_all(dir);
+}
+
 TEST_CASE("train: weight averaging (train.ema_decay) follows its formula, is the checkpoint's model, and resumes exactly", "[train]") {
   const fs::path dir = fs::temp_directory_path() / "hsd_test_train_ema";
   fs::remove_all(dir);
