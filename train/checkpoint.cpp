@@ -129,8 +129,10 @@ int64_t read_checkpoint(const std::string& path, TrainingState& s) {
   if (il_found != 0 && il_found != il_names.size())
     input_error(path, "holds " + std::to_string(il_found) + " of the 3 illuminant.* entries (the illuminant reader's moments): damaged?");
   if (il_found != 0) {
-    const int64_t K = s.illuminant_count, L = s.net->options().bands;
-    const char* hint = "a checkpoint of another config? K = data.illuminants, L = optics.wavelengths_nm";
+    const torch::Tensor raw = dict_get(d.d, "illuminant.mean", path);
+    const int64_t K = raw.dim() == 2 ? raw.size(0) : 0, L = s.net->options().bands;
+    if (K < 1) input_error(path, "illuminant.mean must be [K, L] with K >= 1, is " + c10::str(raw.sizes()));
+    const char* hint = "a checkpoint of another config? L = optics.wavelengths_nm";
     illuminant.mean = d.entry("illuminant.mean", {K, L}, hint).to(torch::kFloat64).clone();
     illuminant.second = d.entry("illuminant.second", {K, L, L}, hint).to(torch::kFloat64).clone();
     const torch::Tensor range = d.entry("illuminant.intensity_range", {2}, "two numbers: min, max").to(torch::kFloat64);

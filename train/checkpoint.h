@@ -36,10 +36,9 @@ struct TrainingState {
   // read when the file has them (all, or it is an InputError), live_read says so.
   std::vector<std::pair<std::string, torch::Tensor>> live = {};
   bool live_read = false;
-  // The illuminant reader's moments, read (all three entries, checked: K =
-  // illuminant_count, L = the network's bands) when the file has them;
+  // The illuminant reader's moments, read (all three entries, checked: [K, L]
+  // and [K, L, L] with L the network's bands) when the file has them;
   // illuminant_read says so. Files written before they were stored have none.
-  int64_t illuminant_count = 0;
   model::IlluminantMoments illuminant = {};
   bool illuminant_read = false;
 };

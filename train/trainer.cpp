@@ -589,7 +589,6 @@ void Trainer::give_illuminant_moments(const std::vector<data::LoadedScene>& trai
 
 int64_t Trainer::load_checkpoint(const std::string& path) {
   TrainingState state{doe_, net_, *opt_, baseline_inv_depth_};
-  state.illuminant_count = int64_t(cfg_.data.illuminants.size());
   std::vector<torch::Tensor> live;  // the optimiser's weights, when the file has them
   if (cfg_.train.ema_decay > 0.0) {
     const std::vector<std::string> names = trained_names();
@@ -597,7 +596,15 @@ int64_t Trainer::load_checkpoint(const std::string& path) {
     for (size_t i = 0; i < live.size(); ++i) state.live.emplace_back("live." + names[i], live[i]);
   }
   const int64_t next = read_checkpoint(path, state);
-  if (state.illuminant_read) net_->set_illuminant_moments(state.illuminant);  // the statistics it was trained with
+  // The reader's moments it was trained with; a config naming another number
+  // of lights asks for others (ensure_illuminant_moments makes them from data.root).
+  const int64_t lights = int64_t(cfg_.data.illuminants.size());
+  if (state.illuminant_read && state.illuminant.mean.size(0) == lights)
+    net_->set_illuminant_moments(state.illuminant);
+  else if (state.illuminant_read && net_->options().read_illuminant)
+    log::warn(path + " holds the illuminant reader's moments of " + std::to_string(state.illuminant.mean.size(0)) +
+              " lights but data.illuminants names " + std::to_string(lights) +
+              ": the reader takes them from the training split of data.root instead");
   if (cfg_.train.ema_decay > 0.0) {  // the parameters hold the file's model; its optimiser's weights go aside
     if (state.live_read)
       average_ = live;

@@ -264,8 +264,17 @@ TEST_CASE("train: checkpoints carry the illuminant reader's moments; a set witho
   save_tensor_dict((dir / "nan.pt").string(), nan);
   CHECK_THROWS_WITH(train::Trainer(held_out()).load_checkpoint((dir / "nan.pt").string()),
                     Catch::Contains("nan.pt") && Catch::Contains("illuminant.mean"));
-  CHECK_THROWS_WITH(train::Trainer(held_out({"data.illuminants=[\"D65\", \"A\"]"})).load_checkpoint(ck),
-                    Catch::Contains("ck.pt") && Catch::Contains("illuminant.mean"));
+  TensorDict wrong = d;
+  wrong["illuminant.second"] = wrong.at("illuminant.second").narrow(2, 0, 2).contiguous();
+  save_tensor_dict((dir / "wrong.pt").string(), wrong);
+  CHECK_THROWS_WITH(train::Trainer(held_out()).load_checkpoint((dir / "wrong.pt").string()),
+                    Catch::Contains("wrong.pt") && Catch::Contains("illuminant.second"));
+  // A config naming other lights asks for their moments: from its training split, not the file's.
+  train::Trainer two(tiny_training((dir / "data").string(), {reader[0], reader[1], "data.illuminants=[\"D65\", \"A\"]"}));
+  two.load_checkpoint(ck);
+  two.ensure_illuminant_moments();
+  CHECK(two.net()->options().read_illuminant);
+  CHECK(two.net()->illuminant_moments().mean.size(0) == 2);
   fs::remove_all(dir);
 }
 
