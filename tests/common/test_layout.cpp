@@ -6,6 +6,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <regex>
 #include <set>
@@ -47,4 +48,21 @@ TEST_CASE("layout: every library includes only itself and the libraries below it
   }
   CHECK(files > 100);
   CHECK(includes > 200);
+}
+
+TEST_CASE("layout: no test name holds a semicolon (CMake splits a discovered name there into two tests that both fail)",
+          "[layout]") {
+  const std::regex test_case(R"re(TEST_CASE\(\s*"([^"]*)")re");
+  int64_t names = 0;
+  for (const auto& e : fs::recursive_directory_iterator(test::source_path("tests"))) {
+    if (e.path().extension() != ".cpp") continue;
+    std::ifstream in(e.path());
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    for (std::sregex_iterator it(text.begin(), text.end(), test_case), end; it != end; ++it) {
+      ++names;
+      INFO(e.path().filename().string() << ": \"" << (*it)[1].str() << "\"");
+      CHECK((*it)[1].str().find(';') == std::string::npos);
+    }
+  }
+  CHECK(names > 100);
 }

@@ -207,7 +207,7 @@ TEST_CASE("train: checkpoint then resume equals an uninterrupted run", "[train]"
   CHECK_THROWS_WITH(other.load_checkpoint((dir / "ck.pt").string()), Catch::Contains("ck.pt"));
 }
 
-TEST_CASE("train: checkpoints carry the illuminant reader's moments; a set without a training split reads the light with them, an older checkpoint falls back to equal weights",
+TEST_CASE("train: checkpoints carry the illuminant reader's moments, a set without a training split reads the light with them, an older checkpoint falls back to equal weights",
           "[train][illuminant_reader]") {
   const fs::path dir = fs::temp_directory_path() / "hsd_test_train_illuminant_ck";
   fs::remove_all(dir);
