@@ -146,8 +146,7 @@ int64_t read_checkpoint(const std::string& path, TrainingState& s) {
   state.clear();
   for (auto& [p, st] : adam) state[c10::guts::to_string(p.unsafeGetTensorImpl())] = std::move(st);
   if (std::isfinite(baseline)) s.baseline_inv_depth = baseline;
-  s.illuminant_read = il_found != 0;
-  if (s.illuminant_read) s.illuminant = illuminant;
+  if (il_found != 0) s.illuminant = illuminant;
   return next;
 }
 

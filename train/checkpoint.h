@@ -37,10 +37,9 @@ struct TrainingState {
   std::vector<std::pair<std::string, torch::Tensor>> live = {};
   bool live_read = false;
   // The illuminant reader's moments, read (all three entries, checked: [K, L]
-  // and [K, L, L] with L the network's bands) when the file has them;
-  // illuminant_read says so. Files written before they were stored have none.
+  // and [K, L, L] with L the network's bands) when the file has them, else
+  // left undefined (files written before they were stored have none).
   model::IlluminantMoments illuminant = {};
-  bool illuminant_read = false;
 };
 
 // Extra entries written beside the model: (name, tensor), e.g. "live.net.<parameter>".

@@ -555,12 +555,12 @@ ValStats Trainer::validate() {
 
 void Trainer::save_checkpoint(const std::string& path, int64_t next_step) {
   hold_in_parameters(true);  // the model; the optimiser's weights beside it
-  NamedTensors live;
+  NamedTensors extra;  // the optimiser's weights (live.*) and the illuminant reader's moments
   const std::vector<std::string> names = trained_names();
-  for (size_t i = 0; i < average_.size(); ++i) live.emplace_back("live." + names[i], average_[i]);
+  for (size_t i = 0; i < average_.size(); ++i) extra.emplace_back("live." + names[i], average_[i]);
   if (net_->illuminant_moments().mean.defined())
-    for (auto& e : illuminant_entries(net_->illuminant_moments())) live.push_back(std::move(e));
-  write_checkpoint(path, doe_, net_, *opt_, baseline_inv_depth_, next_step, live);
+    for (auto& e : illuminant_entries(net_->illuminant_moments())) extra.push_back(std::move(e));
+  write_checkpoint(path, doe_, net_, *opt_, baseline_inv_depth_, next_step, extra);
 }
 
 void Trainer::ensure_illuminant_moments() {
@@ -599,9 +599,10 @@ int64_t Trainer::load_checkpoint(const std::string& path) {
   // The reader's moments it was trained with; a config naming another number
   // of lights asks for others (ensure_illuminant_moments makes them from data.root).
   const int64_t lights = int64_t(cfg_.data.illuminants.size());
-  if (state.illuminant_read && state.illuminant.mean.size(0) == lights)
+  const bool stored = state.illuminant.mean.defined();
+  if (stored && state.illuminant.mean.size(0) == lights)
     net_->set_illuminant_moments(state.illuminant);
-  else if (state.illuminant_read && net_->options().read_illuminant)
+  else if (stored && net_->options().read_illuminant)
     log::warn(path + " holds the illuminant reader's moments of " + std::to_string(state.illuminant.mean.size(0)) +
               " lights but data.illuminants names " + std::to_string(lights) +
               ": the reader takes them from the training split of data.root instead");
