@@ -51,6 +51,8 @@ enum class SpectralMap { fixed, learned };
 enum class LrDecay { cosine, none };
 // train.depth_loss: the depth term in inverse depth or in metres.
 enum class DepthLoss { inverse_l1, metric_l1, metric_l2 };
+// train.hs_loss: the cube term's absolute error (the paper) or squared error (PSNR's).
+enum class HsLoss { l1, l2 };
 // train.precision: the network's training arithmetic ("auto": by the CPU's flags).
 enum class TrainPrecision { float32, bfloat16, automatic };
 // calibration.registration and calibration.background (hsd_calibrate).
@@ -124,6 +126,9 @@ constexpr ChoiceTable<LrDecay, 2> choice_names(LrDecay) {
 }
 constexpr ChoiceTable<DepthLoss, 3> choice_names(DepthLoss) {
   return {{{DepthLoss::inverse_l1, "inverse_l1"}, {DepthLoss::metric_l1, "metric_l1"}, {DepthLoss::metric_l2, "metric_l2"}}};
+}
+constexpr ChoiceTable<HsLoss, 2> choice_names(HsLoss) {
+  return {{{HsLoss::l1, "l1"}, {HsLoss::l2, "l2"}}};
 }
 constexpr ChoiceTable<TrainPrecision, 3> choice_names(TrainPrecision) {
   return {{{TrainPrecision::float32, "float32"}, {TrainPrecision::bfloat16, "bfloat16"}, {TrainPrecision::automatic, "auto"}}};

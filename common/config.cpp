@@ -395,6 +395,7 @@ TrainConfig parse_train(const JsonReader& t) {
   T.loss_beta = t.get_number("loss_beta", T.loss_beta);
   T.loss_gamma = t.get_number("loss_gamma", T.loss_gamma);
   T.depth_loss = read_choice(t, "depth_loss", T.depth_loss);
+  T.hs_loss = read_choice(t, "hs_loss", T.hs_loss);
   T.depth_ce_weight = number_in(t, "depth_ce_weight", T.depth_ce_weight, '[', 0.0, 1e6, ']');
   for (const auto& [k, v] : {std::pair<const char*, double>{"loss_alpha", T.loss_alpha},
                              {"loss_beta", T.loss_beta}, {"loss_gamma", T.loss_gamma}})

@@ -246,6 +246,10 @@ struct TrainConfig {
   // (|Ẑ − Z| in metres, the unit the evaluation reports) or "metric_l2"
   // ((Ẑ − Z)² in m², the evaluation's RMSE squared: train/loss.h).
   DepthLoss depth_loss = DepthLoss::inverse_l1;
+  // The cube term: "l1" (mean |Î − I|, the paper) or "l2" (mean (Î − I)², the
+  // error PSNR measures; minimised by the conditional mean, where L1 takes the
+  // median: train/loss.h). loss_alpha weights either.
+  HsLoss hs_loss = HsLoss::l1;
   // Weight of the depth bins' cross-entropy against two-hot targets (train/loss.h);
   // > 0 needs model.depth_bins >= 2.
   double depth_ce_weight = 0.0;

@@ -26,7 +26,14 @@ LossTerms reconstruction_loss(const torch::Tensor& hs_pred, const torch::Tensor&
                               const torch::Tensor& inv_true, const LossWeights& w, const torch::Tensor& mask,
                               const torch::Tensor& depth_logits) {
   LossTerms t;
-  t.hs = masked_mean((hs_pred - hs_true).abs(), mask);
+  const torch::Tensor e = hs_pred - hs_true;
+  torch::Tensor hs_term;
+  if (w.hs_loss == HsLoss::l2) {
+    hs_term = masked_mean(e.square(), mask);
+    t.hs = masked_mean(e.detach().abs(), mask);
+  } else {
+    hs_term = t.hs = masked_mean(e.abs(), mask);
+  }
   if (w.depth_loss == DepthLoss::inverse_l1) {
     t.depth = masked_mean((inv_pred - inv_true).abs(), mask);
   } else {
@@ -45,7 +52,7 @@ LossTerms reconstruction_loss(const torch::Tensor& hs_pred, const torch::Tensor&
     tv = tv + masked_mean(dy, mask.defined() ? mask.narrow(2, 1, H - 1) * mask.narrow(2, 0, H - 1) : mask);
   }
   t.tv = tv;
-  t.total = w.alpha * t.hs + w.beta * t.depth + w.gamma * t.tv;
+  t.total = w.alpha * hs_term + w.beta * t.depth + w.gamma * t.tv;
   if (depth_logits.defined() && w.ce > 0.0) {
     const torch::Tensor q = two_hot_depth_targets(inv_true.detach(), depth_logits.size(1), w.inv_far, w.inv_near);
     t.ce = masked_mean(-(q * torch::log_softmax(depth_logits, 1)).sum(1, /*keepdim=*/true), mask);

@@ -11,6 +11,12 @@
 // is invariant under 1/x), so where the evidence allows both 1 m and 2 m an L1
 // head picks one of them; the squared term is minimised by their mean in
 // metres, the estimate of least RMSE.
+// The cube term is the paper's L1 or, with train.hs_loss = "l2", the squared
+// error α·mean (Î − I)², which PSNR measures: a squared term is minimised by
+// the conditional mean of the cubes an image allows (the linear minimum-mean-
+// square-error cube the spectral Wiener residual starts from is its Gaussian
+// form), an L1 term by their median. LossTerms::hs is mean |Î − I| either way
+// (the logged train_hs_l1); the total carries the chosen term.
 // The total-variation term acts on the prediction (the paper writes ∇D; the
 // gradient of the ground truth is a constant). Means run over valid pixels
 // (mask) when a mask is given.
@@ -24,6 +30,7 @@ namespace hsd::train {
 struct LossWeights {
   double alpha = 1.0, beta = 1e-2, gamma = 1e-2;
   DepthLoss depth_loss = DepthLoss::inverse_l1;  // the depth term (see above)
+  HsLoss hs_loss = HsLoss::l1;                    // the cube term (see above)
   // The bins head (model.depth_bins): + ce · mean_pixels(−Σ_k q_k log p_k),
   // q the two-hot target of the true normalised inverse depth
   // u = (1/Z − inv_far)/(inv_near − inv_far), clamped to [0, 1], split

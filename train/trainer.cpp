@@ -151,6 +151,7 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
   refresh_preinverse();
   weights_ = {cfg.train.loss_alpha, cfg.train.loss_beta, cfg.train.loss_gamma, cfg.train.depth_loss};
   weights_.ce = cfg.train.depth_ce_weight;
+  weights_.hs_loss = cfg.train.hs_loss;
   weights_.inv_far = 1.0 / net_->options().depth_max_m, weights_.inv_near = 1.0 / net_->options().depth_min_m;
   std::vector<torch::optim::OptimizerParamGroup> groups;
   groups.emplace_back(net_->parameters(), std::make_unique<torch::optim::AdamOptions>(cfg.train.lr_net));

@@ -85,6 +85,12 @@ TEST_CASE("train: the loss terms and the schedule", "[train]") {
   const auto q = train::reconstruction_loss(I + 0.5, I, Dp, D, {1.0, 0.1, 0.01, DepthLoss::metric_l2});
   CHECK(q.depth.item<double>() == Approx(0.5 * 4.0 / 9.0));
   CHECK(q.total.item<double>() == Approx(0.5 + 0.1 * 2.0 / 9.0 + 0.01 * 2.0 / 3.0));
+  // The cube term squared: every band off by 0.5 gives 0.25 in the total; the logged L1 stays 0.5.
+  train::LossWeights sq{2.0, 0.1, 0.01};
+  sq.hs_loss = HsLoss::l2;
+  const auto c = train::reconstruction_loss(I + 0.5, I, Dp, D, sq);
+  CHECK(c.hs.item<double>() == Approx(0.5));
+  CHECK(c.total.item<double>() == Approx(2.0 * 0.25 + 0.1 + 0.01 * 2.0 / 3.0));
   CHECK(train::lr_factor(0, 100, 10, LrDecay::cosine, 0.1) == Approx(0.1));
   CHECK(train::lr_factor(9, 100, 10, LrDecay::cosine, 0.1) == Approx(1.0));
   CHECK(train::lr_factor(99, 100, 10, LrDecay::cosine, 0.1) == Approx(0.1));
@@ -110,6 +116,24 @@ TEST_CASE("train: a constant prediction minimises the squared metric depth term 
     CHECK(std::abs(grad_at(1.0 / z, DepthLoss::inverse_l1)) < 1e-12);
     CHECK(std::abs(grad_at(1.0 / z, DepthLoss::metric_l1)) < 1e-12);
   }
+}
+
+TEST_CASE("train: the squared cube term is minimised by the mean radiance, the L1 term by any median", "[train]") {
+  // One band, half the pixels at radiance 0.2 and half at 0.6; one constant c predicted everywhere.
+  torch::Tensor I = torch::full({1, 1, 2, 2}, 0.2, torch::kFloat64);
+  I.narrow(3, 1, 1).fill_(0.6);
+  const torch::Tensor D = torch::ones({1, 1, 2, 2}, torch::kFloat64);
+  auto grad_at = [&](double c, HsLoss kind) {
+    torch::Tensor p = torch::full({1, 1, 2, 2}, c, torch::dtype(torch::kFloat64).requires_grad(true));
+    train::LossWeights w{1.0, 0.0, 0.0};
+    w.hs_loss = kind;
+    train::reconstruction_loss(p, I, D, D, w).total.backward();
+    return p.grad().sum().item<double>();
+  };
+  CHECK(std::abs(grad_at(0.4, HsLoss::l2)) < 1e-12);
+  CHECK(grad_at(0.3, HsLoss::l2) == Approx(2.0 * (0.3 - 0.4)));  // d/dc mean (c − I)² = 2 (c − mean I)
+  CHECK(std::abs(grad_at(0.3, HsLoss::l1)) < 1e-12);             // flat between the two values
+  CHECK(std::abs(grad_at(0.5, HsLoss::l1)) < 1e-12);
 }
 
 TEST_CASE("train: the depth bins' two-hot targets and cross-entropy follow their formulas", "[train][depth]") {
