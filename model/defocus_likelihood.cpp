@@ -119,8 +119,13 @@ torch::Tensor defocus_layer_depth(const torch::Tensor& cost, const std::vector<d
   if (cost.dim() != 4 || cost.size(1) != int64_t(layer_depths_m.size()))
     throw InputError("defocus_layer_depth: cost must be [B, K, H, W] with K = " + std::to_string(layer_depths_m.size()) +
                      " layers, got " + c10::str(cost.sizes()));
-  const torch::Tensor z = torch::tensor(layer_depths_m, torch::TensorOptions().dtype(torch::kFloat64)).to(cost.dtype());
-  return z.index({cost.argmin(1)});
+  const torch::Tensor z =
+      torch::tensor(layer_depths_m, torch::TensorOptions().dtype(torch::kFloat64)).to(cost.dtype()).view({1, -1, 1, 1});
+  // Every layer within kLayerTieNats of the least cost, averaged (exactly
+  // layer_depths_m[argmin] where one layer is least: z·1 / 1).
+  const torch::Tensor least = std::get<0>(cost.min(1, /*keepdim=*/true));
+  const torch::Tensor tie = (cost <= least + kLayerTieNats).to(cost.dtype());
+  return (tie * z).sum(1) / tie.sum(1);
 }
 
 }  // namespace hsd::model

@@ -57,7 +57,12 @@ torch::Tensor spectral_defocus_cost_volume(const torch::Tensor& image, const tor
                                            const SpectralPrior& prior, int64_t window_px);
 
 // The maximum-likelihood layer per pixel: cost [B, K, H, W] -> depth [B, H, W]
-// [m], each pixel at layer_depths_m[argmin_k ℓ_k] (size K).
+// [m], each pixel at layer_depths_m[argmin_k ℓ_k] (size K). Where several
+// layers tie for the least cost (within kLayerTieNats), the pixel is at the
+// mean of their depths: a tie is no reading, and an index order would bias
+// it (to the nearest layer, the first; a camera without a depth cue, the
+// all-in-focus control, ties at every pixel).
+inline constexpr double kLayerTieNats = 1e-6;  // [nats per pixel]; float32's resolution near 8
 torch::Tensor defocus_layer_depth(const torch::Tensor& cost, const std::vector<double>& layer_depths_m);
 
 }  // namespace hsd::model

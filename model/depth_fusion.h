@@ -5,7 +5,8 @@
 //   1. ℓ_k, the reader's cost of layer k with the whitened energy pooled over
 //      a reader_box_px box (spectral_defocus_cost_volume);
 //   2. ℓ̃_k = GF_g(ℓ_k; r = cost_radius_px), g = fusion_guide(cube);
-//   3. z_r = layer_depths_m[argmin_k ℓ̃_k]            (filtered_reader_depth);
+//   3. z_r = layer_depths_m[argmin_k ℓ̃_k], tied layers
+//      at their mean (defocus_layer_depth)           (filtered_reader_depth);
 //   4. z = clamp(GF_g(½ (z_net + z_r); r = depth_radius_px),
 //               depth_min, depth_max)                  (fuse_depths).
 // A radius of 0 leaves its step out (the guided filter is then the identity):

@@ -4,6 +4,7 @@
 #include <sstream>
 
 #include "common/error.h"
+#include "model/defocus_likelihood.h"
 #include "model/depth_fusion.h"
 #include "model/illuminant_reader.h"
 #include "model/spectral_wiener.h"
@@ -407,9 +408,11 @@ std::string forward_source(const NetOptions& opt) {
       << "        g = g / g.abs().mean([2, 3], keepdim=True).clamp_min(1e-12)\n"
       << "        c = self.guided(g, self.reader_cost(image.float(), " << fs.reader_box_px << "), " << fs.cost_radius_px
       << ", " << eps << ")\n"
-      << "        idx = torch.argmin(c, 1, True)\n"
-      << "        zr = torch.index_select(self.layer_depths_m, 0, idx.flatten()).view(idx.shape)\n"
-      << "        depth = self.guided(g, 0.5 * (depth + zr.float()), " << fs.depth_radius_px << ", " << eps << ")\n"
+      << "        least, _ = torch.min(c, 1, True)\n"  // defocus_layer_depth: tied layers averaged
+      << "        tie = (c <= least + " << c10::str(kLayerTieNats) << ").float()\n"
+      << "        zk = self.layer_depths_m.float().view([1, -1, 1, 1])\n"
+      << "        zr = (tie * zk).sum(1, keepdim=True) / tie.sum(1, keepdim=True)\n"
+      << "        depth = self.guided(g, 0.5 * (depth + zr), " << fs.depth_radius_px << ", " << eps << ")\n"
       << "        depth = depth.clamp(" << c10::str(opt.depth_min_m) << ", " << c10::str(opt.depth_max_m) << ")\n";
   }
   o << "        return (hs, depth)\n";

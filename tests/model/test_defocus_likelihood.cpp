@@ -4,7 +4,8 @@
 // the layer that blurred a texture found, the depth map it reads, bad input,
 // and the network's input with model.defocus_cost; the spectral reader
 // against a full-grid DFT with 3x3 solves, its profiled scale, and a scene
-// drawn from its prior read at the layer that imaged it.
+// drawn from its prior read at the layer that imaged it; tied layers read at
+// the mean of their depths.
 #include <catch2/catch.hpp>
 
 #include <torch/torch.h>
@@ -124,6 +125,32 @@ TEST_CASE("defocus likelihood: the layer that blurred a texture has the least co
     REQUIRE(z.sizes() == c10::IntArrayRef{1, H, W});
     CHECK(((z - depths[k]).abs() < 1e-12).to(torch::kFloat64).mean().item<double>() == Approx(right.mean().item<double>()));
   }
+}
+
+TEST_CASE("defocus likelihood: tied layers are read at the mean of their depths, not at the first", "[defocus]") {
+  const std::vector<double> depths{0.5, 1.0, 2.0, 4.0};
+  // Pixel by pixel: one least layer; all four tied (no cue); two tied; two within the tolerance; two just beyond it.
+  const double t = model::kLayerTieNats;
+  const torch::Tensor cost = torch::tensor({0.3, 0.1, 0.2, 0.4,   //
+                                            0.7, 0.7, 0.7, 0.7,   //
+                                            0.2, 0.5, 0.2, 0.9,   //
+                                            0.5, 0.5 + 0.5 * t, 0.9, 0.9,  //
+                                            0.5, 0.5 + 3.0 * t, 0.9, 0.9},
+                                           torch::kFloat64)
+                               .view({5, 4})
+                               .t()
+                               .reshape({1, 4, 1, 5});
+  const torch::Tensor z = model::defocus_layer_depth(cost, depths);
+  REQUIRE(z.sizes() == c10::IntArrayRef{1, 1, 5});
+  CHECK(z[0][0][0].item<double>() == 1.0);
+  CHECK(z[0][0][1].item<double>() == Approx(7.5 / 4).epsilon(1e-15));
+  CHECK(z[0][0][2].item<double>() == Approx(1.25).epsilon(1e-15));
+  CHECK(z[0][0][3].item<double>() == Approx(0.75).epsilon(1e-15));
+  CHECK(z[0][0][4].item<double>() == 0.5);
+  // float32 costs as the fused reader gives them: the same reading.
+  const torch::Tensor z32 = model::defocus_layer_depth(cost.to(torch::kFloat32), depths);
+  CHECK(z32.scalar_type() == torch::kFloat32);
+  CHECK((z32.to(torch::kFloat64) - z).abs().max().item<double>() < 1e-6);
 }
 
 TEST_CASE("defocus likelihood: bad shapes and parameters are input errors", "[defocus]") {
@@ -340,4 +367,8 @@ TEST_CASE("defocus likelihood: model.fuse_defocus_reader fuses the head's depth 
   const model::NetOutput pe = plain->forward(x);
   const torch::Tensor z31 = model::defocus_layer_depth(plain->fusion_reader_cost(x), o.layer_depths_m).unsqueeze(1);
   CHECK((pe.depth_m - 0.5 * (head_depth(pe) + z31)).abs().max().item<double>() < 1e-6);
+  // The same PSFs at every layer (the all-in-focus control): the reader has no cue, its costs tie everywhere, and
+  // it reads the layers' mean depth, not the nearest layer.
+  plain->set_band_psf((psf / psf.sum({2, 3}, true)).narrow(1, 0, 1).expand({4, 2, 9, 9}).contiguous());
+  CHECK((plain->reader_depth(x, model::fusion_guide(pe.hs)) - 1.25).abs().max().item<double>() < 1e-6);
 }
