@@ -1,6 +1,8 @@
 #include "model/spectral_wiener.h"
 
 #include <algorithm>
+#include <string>
+#include <vector>
 
 #include <torch/torch.h>
 
@@ -38,31 +40,44 @@ void check_spectral_inputs(const char* who, const torch::Tensor& image, const to
   if (!(prior.noise_var > 0)) throw InputError(std::string(who) + ": the noise variance must be > 0");
 }
 
-torch::Tensor spectral_wiener_cube(const torch::Tensor& image, const torch::Tensor& psf, const torch::Tensor& omega,
-                                   const SpectralPrior& prior) {
-  check_spectral_inputs("spectral_wiener_cube", image, psf, omega, prior);
+SpectralOtf spectral_otf(const torch::Tensor& psf, int64_t H, int64_t W) {
+  if (psf.dim() != 4 || psf.size(2) != psf.size(3) || psf.size(2) % 2 == 0 || H < 1 || W < 1)
+    throw InputError("spectral_otf: psf must be [L, K, P, P] with P odd and the image at least 1 x 1, got " +
+                     c10::str(psf.sizes()) + " and " + std::to_string(H) + " x " + std::to_string(W));
+  SpectralOtf o;
   const int64_t L = psf.size(0), K = psf.size(1), P = psf.size(2), r = P / 2;
-  const int64_t B = image.size(0), H = image.size(2), W = image.size(3);
-  const int64_t nh = fast_fft_size(H + 2 * r), nw = fast_fft_size(W + 2 * r), nf = nw / 2 + 1, F_ = nh * nf;
-  const auto dtype = image.scalar_type() == torch::kFloat64 ? torch::kFloat64 : torch::kFloat32;
-  const auto f64 = torch::TensorOptions().dtype(torch::kFloat64).device(image.device());
-  // No gradient flows into Ω or Σ (the camera response and the prior are fixed).
-  const torch::Tensor Om = omega.to(f64).detach(), mu = prior.mean.to(f64).reshape({L});
-  const torch::Tensor Sig = prior.covariance.to(f64).detach();
-
+  o.H = H, o.W = W, o.r = r, o.nh = fast_fft_size(H + 2 * r), o.nw = fast_fft_size(W + 2 * r);
+  const int64_t F_ = o.nh * (o.nw / 2 + 1);
+  const auto f64 = torch::TensorOptions().dtype(torch::kFloat64).device(psf.device());
   // OTFs K_λz(f) [L, K, F], float64: the PSF placed with its centre at pixel
   // (0, 0) by its four quadrants (no padded copy rolled afterwards).
-  torch::Tensor k = torch::zeros({L, K, nh, nw}, f64);
+  torch::Tensor k = torch::zeros({L, K, o.nh, o.nw}, f64);
   {
     const torch::Tensor p = psf.to(f64);
-    const int64_t a = P - r;  // rows/columns r..P-1 of the PSF go to 0..a-1
+    const int64_t a = P - r, nh = o.nh, nw = o.nw;  // rows/columns r..P-1 of the PSF go to 0..a-1
     k.narrow(2, 0, a).narrow(3, 0, a).copy_(p.narrow(2, r, a).narrow(3, r, a));
     k.narrow(2, 0, a).narrow(3, nw - r, r).copy_(p.narrow(2, r, a).narrow(3, 0, r));
     k.narrow(2, nh - r, r).narrow(3, 0, a).copy_(p.narrow(2, 0, r).narrow(3, r, a));
     k.narrow(2, nh - r, r).narrow(3, nw - r, r).copy_(p.narrow(2, 0, r).narrow(3, 0, r));
   }
-  const torch::Tensor Kf = torch::fft::rfft2(k).reshape({L, K, F_});  // [L, K, F]
-  const torch::Tensor Kbar = Kf.mean(1);                              // [L, F]
+  o.Kf = torch::fft::rfft2(k).reshape({L, K, F_});  // [L, K, F]
+  o.Kbar = o.Kf.mean(1);                           // [L, F]
+  return o;
+}
+
+SpectralWienerFilter spectral_wiener_filter(const SpectralOtf& otf, const torch::Tensor& omega, const SpectralPrior& prior) {
+  const int64_t L = otf.Kf.size(0), K = otf.Kf.size(1);
+  if (omega.dim() != 2 || omega.size(0) != 3 || omega.size(1) != L || !prior.mean.defined() ||
+      !prior.covariance.defined() || prior.mean.numel() != L || prior.covariance.sizes() != torch::IntArrayRef{L, L} ||
+      !(prior.noise_var > 0))
+    throw InputError("spectral_wiener_filter: the OTFs have " + std::to_string(L) +
+                     " bands; omega must be [3, L], the prior's mean [L] and covariance [L, L], its noise variance > 0");
+  const auto f64 = torch::TensorOptions().dtype(torch::kFloat64).device(otf.Kf.device());
+  SpectralWienerFilter w;
+  w.otf = otf;
+  // No gradient flows into Ω or Σ (the camera response and the prior are fixed).
+  w.Om = omega.to(f64).detach(), w.mu = prior.mean.to(f64).reshape({L});
+  w.Sig = prior.covariance.to(f64).detach();
 
   // E_z[H_z Σ H_zᴴ] with H_z = Ω diag(K_z) and Σ = V Vᵀ (spectral_wiener_factor,
   // rank R): the Gram matrix (1/K) Σ_z Q_z Q_zᴴ of Q_z = Ω diag(K_z) V [3, R].
@@ -71,12 +86,12 @@ torch::Tensor spectral_wiener_cube(const torch::Tensor& image, const torch::Tens
   // summed along R·K; a block holds about 4 MiB of Q. (Formed as F batched
   // products of L × K by K × L complex matrices instead, the whole filter took
   // 2.1-3.1× as long at the paper's 25 bands and 7 layers: docs/benchmarks.md.)
-  const torch::Tensor Vq = spectral_wiener_factor(Om, Sig);  // [3R, L], rows (c, j)
-  const int64_t rk = Vq.size(0) / 3 * K;                     // R·K
+  const torch::Tensor Vq = spectral_wiener_factor(w.Om, w.Sig);  // [3R, L], rows (c, j)
+  const int64_t rk = Vq.size(0) / 3 * K;                         // R·K
   const int64_t chunk = std::max<int64_t>(256, (int64_t(1) << 22) / std::max<int64_t>(1, 3 * rk * 16));
   std::vector<torch::Tensor> a00, a11, a22, a01, a02, a12;
   // split, not narrow per block: the blocks' gradients then meet in one concatenation
-  for (const torch::Tensor& block : Kf.split(chunk, 2)) {
+  for (const torch::Tensor& block : otf.Kf.split(chunk, 2)) {
     const int64_t n = block.size(2);
     const torch::Tensor kc = torch::view_as_real(block.contiguous()).reshape({L, K * n * 2});
     const torch::Tensor qr = torch::matmul(Vq, kc).view({3, rk, n * 2});  // Q's real view [3, R·K, n·2]
@@ -97,40 +112,62 @@ torch::Tensor spectral_wiener_cube(const torch::Tensor& image, const torch::Tens
   const torch::Tensor A00 = torch::cat(a00) * inv_k, A11 = torch::cat(a11) * inv_k, A22 = torch::cat(a22) * inv_k;
   const torch::Tensor A01 = torch::cat(a01) * inv_k, A02 = torch::cat(a02) * inv_k, A12 = torch::cat(a12) * inv_k;
 
-  const torch::Tensor S = spectral_wiener_psd(nh, nw, prior.psd_exponent, image.device());
+  w.S = spectral_wiener_psd(otf.nh, otf.nw, prior.psd_exponent, otf.Kf.device());
+  const torch::Tensor& S = w.S;
 
   // M = S A + σ² I (Hermitian), its inverse by cofactors, elementwise over the
   // frequencies (a batched LAPACK solve of 3×3 systems is ~10× slower).
   const double s2 = prior.noise_var;
   const torch::Tensor m00 = S * A00 + s2, m11 = S * A11 + s2, m22 = S * A22 + s2;  // real
   const torch::Tensor m01 = S * A01, m02 = S * A02, m12 = S * A12;                 // complex; m10 = conj(m01), ...
-  const torch::Tensor c00 = m11 * m22 - torch::real(m12 * m12.conj());
-  const torch::Tensor c11 = m00 * m22 - torch::real(m02 * m02.conj());
-  const torch::Tensor c22 = m00 * m11 - torch::real(m01 * m01.conj());
-  const torch::Tensor c01 = m02 * m12.conj() - m01 * m22;  // adj(M)_01
-  const torch::Tensor c02 = m01 * m12 - m02 * m11;          // adj(M)_02
-  const torch::Tensor c12 = m02 * m01.conj() - m00 * m12;  // adj(M)_12
-  const torch::Tensor det = m00 * c00 + torch::real(m01 * c01.conj()) + torch::real(m02 * c02.conj());
+  w.c00 = m11 * m22 - torch::real(m12 * m12.conj());
+  w.c11 = m00 * m22 - torch::real(m02 * m02.conj());
+  w.c22 = m00 * m11 - torch::real(m01 * m01.conj());
+  w.c01 = m02 * m12.conj() - m01 * m22;  // adj(M)_01
+  w.c02 = m01 * m12 - m02 * m11;          // adj(M)_02
+  w.c12 = m02 * m01.conj() - m00 * m12;  // adj(M)_12
+  const torch::Tensor det = m00 * w.c00 + torch::real(m01 * w.c01.conj()) + torch::real(m02 * w.c02.conj());
+  w.inv_det = 1.0 / det;
+  w.otf.Kf = torch::Tensor();  // applying needs K̄ only
+  return w;
+}
 
+torch::Tensor apply_spectral_wiener(const SpectralWienerFilter& w, const torch::Tensor& image) {
+  const SpectralOtf& o = w.otf;
+  const int64_t L = w.Om.size(1), B = image.size(0), H = image.size(2), W = image.size(3), r = o.r;
+  if (image.dim() != 4 || image.size(1) != 3 || H != o.H || W != o.W)
+    throw InputError("apply_spectral_wiener: the filter is for [B, 3, " + std::to_string(o.H) + ", " + std::to_string(o.W) +
+                     "] images, got " + c10::str(image.sizes()));
+  const int64_t nh = o.nh, nw = o.nw, nf = nw / 2 + 1, F_ = nh * nf;
+  const auto dtype = image.scalar_type() == torch::kFloat64 ? torch::kFloat64 : torch::kFloat32;
+  const auto f64 = torch::TensorOptions().dtype(torch::kFloat64).device(image.device());
+  const torch::Tensor& Om = w.Om;
   // X̂ = S Σ diag(conj K̄) Ωᵀ M⁻¹ (Y − Ω μ δ_f0): M⁻¹ per frequency, then real
   // GEMMs with Ωᵀ and Σ over the image's real view; float64 throughout, the
   // cube returned to the image's precision before the inverse FFT.
-  torch::Tensor y = image.to(f64) - torch::matmul(Om, mu).view({1, 3, 1, 1});
+  torch::Tensor y = image.to(f64) - torch::matmul(Om, w.mu).view({1, 3, 1, 1});
   y = F::pad(y, F::PadFuncOptions({r, nw - W - r, r, nh - H - r}).mode(torch::kReplicate));
   const torch::Tensor Y = torch::fft::rfft2(y).reshape({B, 3, F_});
   const torch::Tensor Y0 = Y.select(1, 0), Y1 = Y.select(1, 1), Y2 = Y.select(1, 2);
-  const torch::Tensor id = (1.0 / det);
-  const torch::Tensor Z0 = (c00 * Y0 + c01 * Y1 + c02 * Y2) * id;
-  const torch::Tensor Z1 = (c01.conj() * Y0 + c11 * Y1 + c12 * Y2) * id;
-  const torch::Tensor Z2 = (c02.conj() * Y0 + c12.conj() * Y1 + c22 * Y2) * id;
+  const torch::Tensor& id = w.inv_det;
+  const torch::Tensor Z0 = (w.c00 * Y0 + w.c01 * Y1 + w.c02 * Y2) * id;
+  const torch::Tensor Z1 = (w.c01.conj() * Y0 + w.c11 * Y1 + w.c12 * Y2) * id;
+  const torch::Tensor Z2 = (w.c02.conj() * Y0 + w.c12.conj() * Y1 + w.c22 * Y2) * id;
   const torch::Tensor Zr = torch::view_as_real(torch::stack({Z0, Z1, Z2}, 0)).reshape({3, B * F_ * 2});  // [3, B·F·2]
   torch::Tensor u = torch::view_as_complex(torch::matmul(Om.t(), Zr).view({L, B, F_, 2}));              // Ωᵀ Z [L, B, F]
-  u = u * Kbar.conj().unsqueeze(1);
-  const torch::Tensor xr = torch::matmul(Sig, torch::view_as_real(u).reshape({L, B * F_ * 2})).view({L, B, F_, 2});
+  u = u * o.Kbar.conj().unsqueeze(1);
+  const torch::Tensor xr = torch::matmul(w.Sig, torch::view_as_real(u).reshape({L, B * F_ * 2})).view({L, B, F_, 2});
   const auto cdt = dtype == torch::kFloat64 ? torch::kComplexDouble : torch::kComplexFloat;
-  const torch::Tensor X = (torch::view_as_complex(xr) * S).to(cdt).transpose(0, 1).reshape({B, L, nh, nf});
+  const torch::Tensor X = (torch::view_as_complex(xr) * w.S).to(cdt).transpose(0, 1).reshape({B, L, nh, nf});
   const torch::Tensor x = torch::fft::irfft2(X, c10::IntArrayRef{nh, nw});
-  return x.narrow(2, r, H).narrow(3, r, W) + mu.to(dtype).view({1, L, 1, 1});
+  return x.narrow(2, r, H).narrow(3, r, W) + w.mu.to(dtype).view({1, L, 1, 1});
+}
+
+torch::Tensor spectral_wiener_cube(const torch::Tensor& image, const torch::Tensor& psf, const torch::Tensor& omega,
+                                   const SpectralPrior& prior) {
+  check_spectral_inputs("spectral_wiener_cube", image, psf, omega, prior);
+  const SpectralOtf otf = spectral_otf(psf, image.size(2), image.size(3));
+  return apply_spectral_wiener(spectral_wiener_filter(otf, omega, prior), image);
 }
 
 torch::Tensor spectral_wiener_psd(int64_t nh, int64_t nw, double exponent, const torch::Device& device) {

@@ -49,8 +49,35 @@ void check_spectral_inputs(const char* who, const torch::Tensor& image, const to
 
 // image [B, 3, H, W], psf [L, K, P, P] (P odd, each summing to ≤ 1), omega
 // [3, L] (the camera response that made the image), prior -> [B, L, H, W].
+// = apply_spectral_wiener(spectral_wiener_filter(spectral_otf(psf, H, W),
+// omega, prior), image): the parts below, for callers that apply one filter
+// to many images (HsdNet keeps them while its PSFs and prior stay the same).
 torch::Tensor spectral_wiener_cube(const torch::Tensor& image, const torch::Tensor& psf, const torch::Tensor& omega,
                                    const SpectralPrior& prior);
+
+// The OTFs of psf [L, K, P, P] on the FFT grid of an H × W image extended by
+// P/2 on every side (nh × nw, fast sizes): Kf [L, K, nh·(nw/2+1)] and their
+// mean over the layers Kbar [L, nh·(nw/2+1)], complex128. Depends on the PSFs
+// and the image's size only; differentiable in the PSFs.
+struct SpectralOtf {
+  int64_t H = 0, W = 0, r = 0, nh = 0, nw = 0;
+  torch::Tensor Kf, Kbar;
+};
+SpectralOtf spectral_otf(const torch::Tensor& psf, int64_t H, int64_t W);
+
+// Everything of the estimator but the image: Ω, μ, Σ (float64), S(f) and the
+// per-frequency cofactors of M = S·E_z[H_z Σ H_zᴴ] + σ² I with 1/det M
+// (flattened [nh·(nw/2+1)]). Differentiable in the PSFs through otf.
+struct SpectralWienerFilter {
+  SpectralOtf otf;  // its Kbar and sizes (Kf is not kept)
+  torch::Tensor Om, mu, Sig, S;
+  torch::Tensor c00, c11, c22, c01, c02, c12, inv_det;
+};
+// otf of L bands, omega [3, L], the prior of L bands (InputError otherwise).
+SpectralWienerFilter spectral_wiener_filter(const SpectralOtf& otf, const torch::Tensor& omega, const SpectralPrior& prior);
+// image [B, 3, H, W] of the filter's size -> the cube [B, L, H, W] in the
+// image's precision (float64 for float64 images, float32 otherwise).
+torch::Tensor apply_spectral_wiener(const SpectralWienerFilter& filter, const torch::Tensor& image);
 
 // The prior's spatial power spectrum S(f) on the real half of an nh × nw DFT
 // grid, flattened [nh·(nw/2+1)], float64: (|f| + 1/max(nh, nw))^−α, mean 1

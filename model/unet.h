@@ -28,6 +28,7 @@
 #include "model/depth_fusion.h"
 #include "model/illuminant_reader.h"
 #include "model/spectral_wiener.h"
+#include "model/tensor_snapshot.h"
 
 namespace hsd::model {
 
@@ -171,6 +172,11 @@ class HsdNetImpl : public torch::nn::Module {
   // mixture.
   SpectralPrior prior_for(const torch::Tensor& image) const;
   // image [B, 3, H, W] -> the spectral Wiener cube [B, L, H, W] (float32).
+  // The filter (the OTFs and, with the buffers' prior, the per-frequency
+  // solve) is kept while the band PSFs, the prior and the image size stay the
+  // same (TensorSnapshot): from the second call on, a frozen design's
+  // training steps and a validation's batches reuse it (the same arithmetic,
+  // so bitwise the same cube). Not kept while the PSFs carry a gradient.
   torch::Tensor spectral_wiener(const torch::Tensor& image) const;
   const NetOptions& options() const { return opt_; }
   // The residual's spectral-upsampling weights [L, C] (a buffer, or a
@@ -202,6 +208,21 @@ class HsdNetImpl : public torch::nn::Module {
   torch::Tensor preinverse_psf_;  // [K, C, P, P] or undefined
   torch::Tensor band_psf_;        // [L, K, P, P] or undefined
   torch::Tensor sw_mean_, sw_cov_, sw_noise_var_, sw_omega_;  // buffers (residual_spectral_wiener)
+  // spectral_wiener's filters and what they were made from. A filter is kept
+  // on the second call with the same inputs (a trained design's PSFs change
+  // every step and would only hold memory); the OTFs, for the per-image
+  // priors of read_illuminant, when at most kMaxKeptOtfBytes.
+  struct WienerKeep {
+    TensorSnapshot psf, mean, cov, noise, omega;
+    int64_t H = -1, W = -1;
+    bool seen = false;  // these inputs were used once
+    std::shared_ptr<SpectralWienerFilter> filter;
+    std::shared_ptr<SpectralOtf> otf;
+  };
+  static constexpr int64_t kMaxKeptOtfBytes = int64_t(32) << 20;
+  mutable WienerKeep sw_keep_;
+  // image's OTFs (kept or made), and whether the buffers' filter may be kept.
+  SpectralOtf wiener_otf(const torch::Tensor& image, bool* keepable) const;
   IlluminantMoments illum_;  // read_illuminant
 };
 TORCH_MODULE(HsdNet);

@@ -17,6 +17,7 @@
 #include "doe_gradient_cut.h"
 #include "helpers.h"
 #include "model/spectral_wiener.h"
+#include "model/tensor_snapshot.h"
 #include "model/unet.h"
 #include "train/trainer.h"
 
@@ -216,6 +217,68 @@ TEST_CASE("spectral Wiener: gradients in the image and the PSFs match central di
   for (const auto& g : test::image_psf_gradient_check(f, x, p, 1e-4)) {
     INFO(g.input << " entry " << g.entry);
     CHECK(g.autograd == Approx(g.difference).epsilon(1e-5).margin(1e-9));
+  }
+}
+
+TEST_CASE("tensor snapshot: the same tensor unwritten matches; a write, an alias's write or another tensor does not",
+          "[spectral_wiener]") {
+  torch::Tensor a = torch::rand({4, 5});
+  const model::TensorSnapshot s(a);
+  CHECK(s.matches(a));
+  CHECK(s.matches(a.detach()));                      // an alias of the same values
+  CHECK_FALSE(s.matches(a.clone()));                 // equal values elsewhere: not known to be the same
+  CHECK_FALSE(s.matches(a.narrow(0, 1, 2)));         // a part
+  CHECK_FALSE(s.matches(a.t()));                     // other strides
+  CHECK_FALSE(s.matches(torch::Tensor()));
+  a.detach().add_(1.0);                              // written through an alias
+  CHECK_FALSE(s.matches(a));
+  const model::TensorSnapshot s2(a);
+  a.narrow(0, 0, 1).zero_();                         // written through a view
+  CHECK_FALSE(s2.matches(a));
+  CHECK_FALSE(model::TensorSnapshot().matches(a));
+}
+
+TEST_CASE("spectral Wiener: the network keeps its filter while PSFs, prior and size stay, and drops it when any changes",
+          "[spectral_wiener]") {
+  torch::manual_seed(21);
+  const int64_t L = 6;
+  model::NetOptions o;
+  o.bands = L, o.base_width = 4, o.levels = 1, o.norm = NormKind::group, o.residual_spectral_wiener = true;
+  model::HsdNet net(o, torch::rand({L, 3}));
+  const torch::Tensor Om = torch::rand({3, L});
+  torch::Tensor mu = torch::rand({L}) * 0.3;
+  const torch::Tensor sig = spd(L, 1e-3).to(torch::kFloat32);
+  net->set_spectral_prior(mu, sig, 1e-5, Om);
+  torch::Tensor psf = torch::rand({L, 2, 9, 9});
+  psf = psf / psf.sum({2, 3}, true);
+  net->set_band_psf(psf);
+  // The filter made afresh from the network's buffers (its float32 noise variance).
+  auto direct = [&](const torch::Tensor& p, const torch::Tensor& x, const torch::Tensor&) {
+    return model::spectral_wiener_cube(x, p, Om, net->spectral_prior()).to(torch::kFloat32);
+  };
+  const torch::Tensor x = torch::rand({2, 3, 20, 24});
+  const torch::Tensor first = direct(psf, x, mu);
+  for (int k = 0; k < 3; ++k) CHECK(net->spectral_wiener(x).equal(first));  // made, kept, reused: bitwise the same
+  psf.mul_(0.9);  // the PSFs written in place
+  const torch::Tensor dimmer = direct(psf, x, mu);
+  CHECK_FALSE(dimmer.equal(first));
+  for (int k = 0; k < 3; ++k) CHECK(net->spectral_wiener(x).equal(dimmer));
+  mu = mu * 1.5;  // another prior
+  net->set_spectral_prior(mu, sig, 1e-5, Om);
+  const torch::Tensor brighter = direct(psf, x, mu);
+  CHECK_FALSE(brighter.equal(dimmer));
+  for (int k = 0; k < 3; ++k) CHECK(net->spectral_wiener(x).equal(brighter));
+  const torch::Tensor x2 = torch::rand({1, 3, 16, 18});  // another size
+  for (int k = 0; k < 3; ++k) CHECK(net->spectral_wiener(x2).equal(direct(psf, x2, mu)));
+  // PSFs in a graph (the same values, as a training step's) are never served
+  // from what was kept: the gradient reaches them every time.
+  const torch::Tensor pg = psf.detach().requires_grad_();
+  net->set_band_psf(pg);
+  for (int k = 0; k < 3; ++k) {
+    pg.mutable_grad() = torch::Tensor();
+    net->spectral_wiener(x).sum().backward();
+    REQUIRE(pg.grad().defined());
+    CHECK(pg.grad().abs().max().item<double>() > 0.0);
   }
 }
 
