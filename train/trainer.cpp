@@ -144,6 +144,7 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
       log::info("optics.psf_source = \"all_in_focus\": the control; the DOE is not used and only the network is trained");
   }
   doe_trained_ = !cfg.train.freeze_doe && !fixed_psf_;
+  psf_still_ = fixed_psf_ || (!doe_trained_ && optics::no_fabrication_error(cfg.train.fabrication_noise));
   // The PSF's reach plus the soft layer masks' (3σ): then the patch's image is
   // the whole scene's image at those pixels (tests: sensor, margin).
   margin_ = render_margin_px(cfg);
@@ -320,7 +321,15 @@ torch::Tensor Trainer::centre(const torch::Tensor& t) const {
   return t.narrow(2, m, S).narrow(3, m, S);
 }
 
-torch::Tensor Trainer::psf_stack() const { return optics::imaging_psf_stack(*psf_, doe_.height(), fixed_psf_); }
+torch::Tensor Trainer::psf_stack() const {
+  if (!psf_still_) return optics::imaging_psf_stack(*psf_, doe_.height(), fixed_psf_);
+  const int64_t version = int64_t(doe_.parameter()._version());
+  if (!kept_psf_.defined() || version != kept_psf_version_) {
+    kept_psf_ = optics::imaging_psf_stack(*psf_, doe_.height(), fixed_psf_);
+    kept_psf_version_ = version;
+  }
+  return kept_psf_;
+}
 
 std::vector<int64_t> Trainer::all_layers() const {
   std::vector<int64_t> v(psf_->spec().depths_m.size());
@@ -352,8 +361,12 @@ model::NetOutput Trainer::reconstruct_window(const torch::Tensor& window) {
 void Trainer::refresh_preinverse() {
   const bool pre = net_->options().preinverse_layers > 0, sw = net_->options().residual_spectral_wiener;
   if (!pre && !sw) return;
+  refresh_preinverse(psf_stack());
+}
+
+void Trainer::refresh_preinverse(const torch::Tensor& all) {
+  const bool pre = net_->options().preinverse_layers > 0, sw = net_->options().residual_spectral_wiener;
   torch::NoGradGuard no_grad;
-  const torch::Tensor all = psf_stack();
   if (pre) net_->set_preinverse_psf(model::camera_rgb_psfs(all, sensor_.omega));
   if (sw) net_->set_band_psf(all);
 }
@@ -396,7 +409,12 @@ Trainer::StepImage Trainer::render_step(const Batch& batch, int64_t step, optics
   // of the provider; with train.fabrication_noise_calibrated it deconvolves
   // with the perturbed PSFs, as a camera calibrated after fabrication.
   StepImage out;
-  if (net_->options().preinverse_layers > 0 || net_->options().residual_spectral_wiener) {
+  if (psf_still_) {  // the kept stack: no PSF work, nothing of it in the graph
+    const torch::Tensor all = psf_stack();
+    if (net_->options().preinverse_layers > 0) out.rgb_psf = model::camera_rgb_psfs(all, sensor_.omega);
+    if (net_->options().residual_spectral_wiener) out.band_psf = all;
+    provider = optics::fixed_psf_provider(all);
+  } else if (net_->options().preinverse_layers > 0 || net_->options().residual_spectral_wiener) {
     auto every_psf = [&](const torch::Tensor& hh) { return provider ? provider(hh, all_layers(), all_bands()) : psf_->compute(hh).psf; };
     const torch::Tensor all = every_psf(h);
     const torch::Tensor known = h.is_same(design) || cfg_.train.fabrication_noise_calibrated ? all : every_psf(design);
@@ -496,7 +514,10 @@ ValStats Trainer::validate() {
   // Per-rank batch norm: every rank validates with rank 0's running statistics.
   if (!cfg_.distributed.sync_batch_norm) ranks_->broadcast_(net_->buffers(), "rank 0's batch-norm statistics");
   net_->eval();
-  refresh_preinverse();
+  // The PSFs once for every batch (they do not change within a validation).
+  const torch::Tensor all = psf_stack();
+  refresh_preinverse(all);
+  const optics::PsfProvider val_psf = optics::fixed_psf_provider(all);
   const torch::Tensor h = doe_.height();
   // This rank's share [lo, hi) of the validation patches (all of them alone).
   const int64_t n_all = val_.radiance.size(0), B = cfg_.train.batch_size;
@@ -510,7 +531,7 @@ ValStats Trainer::validate() {
     const torch::Tensor Iw = val_.radiance.narrow(0, i, b), Zw = val_.depth_m.narrow(0, i, b);
     const optics::SensorImage img =
         optics::simulate_sensor(*psf_, sensor_, h, Iw, Zw, image_generators(mix(cfg_.seed, kValSeed + 1), i, b),
-                                optics::LeaveOut(), fixed_psf_);
+                                optics::LeaveOut(), val_psf);
     const torch::Tensor I = centre(Iw), Z = centre(Zw), J = centre(img.image);
     // The window's deconvolutions once: the network's input and the Wiener baseline (reconstruct_window's work).
     const torch::Tensor pre = K > 0 ? centre(net_->preinverse(img.image)) : torch::Tensor();

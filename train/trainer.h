@@ -112,13 +112,18 @@ class Trainer {
   // (optics.psf_source: the all-in-focus control's or a file's), or nullptr
   // (the DOE's PSFs from psf()).
   const optics::PsfProvider& fixed_psf() const { return fixed_psf_; }
-  // Every band's and depth's imaging PSF [L, Z, P, P] (the DOE's or the fixed stack).
+  // Every band's and depth's imaging PSF [L, Z, P, P] (the DOE's or the fixed
+  // stack), no gradient. When the design cannot change between steps (a
+  // frozen DOE without fabrication noise, or a fixed PSF source) it is
+  // computed once and kept until the DOE's parameter is written (a loaded
+  // checkpoint): read-only.
   torch::Tensor psf_stack() const;
   // model.preinverse = "wiener": hands the network the RGB PSFs of the current
   // DOE (no gradient), and with model.residual = "spectral_wiener" its band
   // PSFs; called by validation, pictures, evaluation and after a checkpoint
   // is loaded. Training steps set their own (with the gradient).
   void refresh_preinverse();
+  void refresh_preinverse(const torch::Tensor& all);  // from psf_stack() at hand
   // With model.read_illuminant: gives the network the illuminant reader's
   // moments from the training split of data.root when it has none (a
   // checkpoint written before checkpoints stored them). When data.root has
@@ -192,6 +197,12 @@ class Trainer {
   optics::PsfProvider shared_psf_;  // training PSFs shared out over the ranks (distributed.split_psf)
   optics::PsfProvider fixed_psf_;   // optics.psf_source = "all_in_focus": the control's PSFs
   bool doe_trained_ = true;         // false when frozen (train.freeze_doe) or unused (a fixed PSF source)
+  // The imaging PSFs are the same at every step (frozen or unused DOE, no
+  // fabrication noise): psf_stack() keeps them, keyed on the DOE parameter's
+  // version counter (bumped by every in-place write, as a checkpoint load's).
+  bool psf_still_ = false;
+  mutable torch::Tensor kept_psf_;
+  mutable int64_t kept_psf_version_ = -1;
   double baseline_inv_depth_ = std::nan("");
   std::vector<torch::Tensor> average_;  // weight averaging's other copy of trained_parameters() (empty: off or not started)
   bool average_in_use_ = false;         // the parameters hold the average, average_ the optimiser's weights

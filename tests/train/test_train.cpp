@@ -12,6 +12,7 @@
 #include "helpers.h"
 #include "model/spectral_upsampling.h"
 #include "model/unet.h"
+#include "optics/psf_source.h"
 #include "train/loss.h"
 #include "train/metrics_csv.h"
 #include "train/metrics_log.h"
@@ -202,6 +203,30 @@ TEST_CASE("train: a step lowers the loss and moves the height map, and a frozen 
     for (int k = 0; k < 3; ++k) t.step(b, k);
     CHECK(t.height().equal(h0));  // bit-identical
   }
+}
+
+TEST_CASE("train: a frozen design's PSFs are computed once, render as computed afresh, and follow a written DOE",
+          "[train]") {
+  const std::string root = (fs::temp_directory_path() / "hsd_test_train_kept_psf").string();
+  train::Trainer frozen(tiny_training(root, {"train.freeze_doe=true"}));
+  train::Trainer trained(tiny_training(root));
+  const torch::Tensor kept = frozen.psf_stack();
+  CHECK(frozen.psf_stack().data_ptr() == kept.data_ptr());  // kept, not recomputed
+  CHECK(kept.equal(optics::imaging_psf_stack(frozen.psf(), frozen.height(), nullptr)));
+  // The step renders through the kept stack as the trained design's step
+  // through PSFs computed in its graph: the same loss before any update.
+  const train::Batch b = fixed_batch(3);
+  const double lf = frozen.step(b, 0).loss, lt = trained.step(b, 0).loss;
+  CHECK(lf == Approx(lt).epsilon(1e-6));
+  CHECK(frozen.psf_stack().data_ptr() == kept.data_ptr());
+  // A write to the DOE's parameter (as a checkpoint load makes) is seen.
+  {
+    torch::NoGradGuard ng;
+    frozen.doe().parameter().mul_(0.5);
+  }
+  const torch::Tensor fresh = optics::imaging_psf_stack(frozen.psf(), frozen.height(), nullptr);
+  CHECK_FALSE(fresh.equal(kept));
+  CHECK(frozen.psf_stack().equal(fresh));
 }
 
 TEST_CASE("train: checkpoint then resume equals an uninterrupted run", "[train]") {
