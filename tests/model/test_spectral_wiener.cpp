@@ -220,7 +220,7 @@ TEST_CASE("spectral Wiener: gradients in the image and the PSFs match central di
   }
 }
 
-TEST_CASE("tensor snapshot: the same tensor unwritten matches; a write, an alias's write or another tensor does not",
+TEST_CASE("tensor snapshot: the same tensor unwritten matches, and neither a write, an alias's write nor another tensor does",
           "[spectral_wiener]") {
   torch::Tensor a = torch::rand({4, 5});
   const model::TensorSnapshot s(a);
