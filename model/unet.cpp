@@ -155,9 +155,16 @@ torch::Tensor HsdNetImpl::spectral_wiener(const torch::Tensor& image) const {
   TORCH_CHECK(sw_noise_var_.item<double>() > 0, "HsdNet: the spectral Wiener base's prior was never set");
   const SpectralPrior prior{sw_mean_, sw_cov_, sw_noise_var_.item<double>()};
   check_spectral_inputs("HsdNet::spectral_wiener", image, band_psf_, sw_omega_, prior);
-  bool keepable = false;
-  const SpectralOtf otf = wiener_otf(image, &keepable);
+  const int64_t H = image.size(2), W = image.size(3);
+  WienerKeep& k = sw_keep_;
+  // A PSF stack in an autograd graph is this step's: its filter must be in the graph too.
+  const bool keepable = !(torch::GradMode::is_enabled() && band_psf_.requires_grad());
+  if (keepable && !(k.psf.matches(band_psf_) && k.H == H && k.W == W)) {  // new PSFs or size: all kept is stale
+    k = WienerKeep();
+    k.psf = TensorSnapshot(band_psf_), k.H = H, k.W = W;
+  }
   if (opt_.read_illuminant && !is_training()) {  // one prior per image
+    const SpectralOtf otf = keepable ? kept_otf(H, W) : spectral_otf(band_psf_, H, W);
     std::vector<torch::Tensor> out;
     for (int64_t b = 0; b < image.size(0); ++b) {
       const torch::Tensor x = image.narrow(0, b, 1);
@@ -165,39 +172,27 @@ torch::Tensor HsdNetImpl::spectral_wiener(const torch::Tensor& image) const {
     }
     return torch::cat(out, 0);
   }
-  WienerKeep& k = sw_keep_;
   const bool same_prior = k.mean.matches(sw_mean_) && k.cov.matches(sw_cov_) && k.noise.matches(sw_noise_var_) &&
                           k.omega.matches(sw_omega_);
   if (keepable && same_prior && k.filter) return apply_spectral_wiener(*k.filter, image).to(torch::kFloat32);
-  SpectralWienerFilter f = spectral_wiener_filter(otf, sw_omega_, prior);
+  SpectralWienerFilter f = spectral_wiener_filter(spectral_otf(band_psf_, H, W), sw_omega_, prior);
   const torch::Tensor cube = apply_spectral_wiener(f, image).to(torch::kFloat32);
-  if (keepable && same_prior && k.seen) {
+  if (keepable && same_prior) {  // the second use of these inputs: keep the filter
     k.filter = std::make_shared<SpectralWienerFilter>(std::move(f));
   } else if (keepable) {  // the first use of this prior: remember it, keep the filter on the next
     k.mean = TensorSnapshot(sw_mean_), k.cov = TensorSnapshot(sw_cov_), k.noise = TensorSnapshot(sw_noise_var_);
     k.omega = TensorSnapshot(sw_omega_);
     k.filter.reset();
-    k.seen = true;
   }
   return cube;
 }
 
-SpectralOtf HsdNetImpl::wiener_otf(const torch::Tensor& image, bool* keepable) const {
+SpectralOtf HsdNetImpl::kept_otf(int64_t H, int64_t W) const {
   WienerKeep& k = sw_keep_;
-  const int64_t H = image.size(2), W = image.size(3);
-  // A PSF stack in an autograd graph is this step's: its OTFs must be in the graph too.
-  *keepable = !(torch::GradMode::is_enabled() && band_psf_.requires_grad());
-  if (!*keepable) return spectral_otf(band_psf_, H, W);
-  if (k.psf.matches(band_psf_) && k.H == H && k.W == W) {
-    if (k.otf) return *k.otf;
-    SpectralOtf o = spectral_otf(band_psf_, H, W);
-    if (o.Kf.numel() * int64_t(o.Kf.element_size()) <= kMaxKeptOtfBytes) k.otf = std::make_shared<SpectralOtf>(o);
-    return o;
-  }
-  // New PSFs or a new size: everything kept is stale.
-  k = WienerKeep();
-  k.psf = TensorSnapshot(band_psf_), k.H = H, k.W = W;
-  return spectral_otf(band_psf_, H, W);
+  if (k.otf) return *k.otf;
+  SpectralOtf o = spectral_otf(band_psf_, H, W);
+  if (o.Kf.numel() * int64_t(o.Kf.element_size()) <= kMaxKeptOtfBytes) k.otf = std::make_shared<SpectralOtf>(o);
+  return o;
 }
 
 void HsdNetImpl::set_replica_group(const std::shared_ptr<ReplicaGroup>& group) {

@@ -215,14 +215,13 @@ class HsdNetImpl : public torch::nn::Module {
   struct WienerKeep {
     TensorSnapshot psf, mean, cov, noise, omega;
     int64_t H = -1, W = -1;
-    bool seen = false;  // these inputs were used once
     std::shared_ptr<SpectralWienerFilter> filter;
     std::shared_ptr<SpectralOtf> otf;
   };
   static constexpr int64_t kMaxKeptOtfBytes = int64_t(32) << 20;
   mutable WienerKeep sw_keep_;
-  // image's OTFs (kept or made), and whether the buffers' filter may be kept.
-  SpectralOtf wiener_otf(const torch::Tensor& image, bool* keepable) const;
+  // The OTFs of the band PSFs for H × W images (sw_keep_ is theirs), kept or made.
+  SpectralOtf kept_otf(int64_t H, int64_t W) const;
   IlluminantMoments illum_;  // read_illuminant
 };
 TORCH_MODULE(HsdNet);
