@@ -349,6 +349,12 @@ ModelConfig parse_model(const JsonReader& m) {
   M.illuminant_effective_blocks = number_in(m, "illuminant_effective_blocks", M.illuminant_effective_blocks, '(', 0.0, 1e9, ']');
   if (M.read_illuminant && M.residual != ResidualBase::spectral_wiener)
     m.fail("read_illuminant", "needs model.residual = \"spectral_wiener\" (the prior it re-weighs)");
+  M.edge_prior_weight = number_in(m, "edge_prior_weight", M.edge_prior_weight, '[', 0.0, 1e6, ']');
+  M.edge_prior_iterations = int_in(m, "edge_prior_iterations", M.edge_prior_iterations, 1, 1000);
+  M.edge_prior_rho_start = number_in(m, "edge_prior_rho_start", M.edge_prior_rho_start, '(', 0.0, 1e12, ']');
+  M.edge_prior_rho_factor = number_in(m, "edge_prior_rho_factor", M.edge_prior_rho_factor, '(', 1.0, 1e6, ']');
+  if (M.edge_prior_weight > 0 && M.residual != ResidualBase::spectral_wiener)
+    m.fail("edge_prior_weight", "needs model.residual = \"spectral_wiener\" (the cube it sharpens)");
   if (M.fuse_defocus_reader && M.residual != ResidualBase::spectral_wiener)
     m.fail("fuse_defocus_reader", "needs model.residual = \"spectral_wiener\" (the reader's prior and band PSFs)");
   if (M.defocus_cost == DefocusCost::grey && M.preinverse != Preinverse::wiener)

@@ -193,6 +193,16 @@ struct ModelConfig {
   bool read_illuminant = false;
   int64_t illuminant_block_px = 16;
   double illuminant_effective_blocks = 32;
+  // > 0 (needs residual = "spectral_wiener"): in evaluation (and validation)
+  // the spectral Wiener base becomes the cube with a total-variation edge
+  // prior of this weight (model/spectral_tv.h; radiance units), solved by
+  // half-quadratic splitting over edge_prior_iterations steps of ρ̃ from
+  // edge_prior_rho_start growing ×edge_prior_rho_factor; training is
+  // unchanged. 0 = the linear cube. Measured: docs/learning.md, "An edge prior for the cube".
+  double edge_prior_weight = 0.0;
+  int64_t edge_prior_iterations = 8;
+  double edge_prior_rho_start = 1e-3;
+  double edge_prior_rho_factor = 2.0;
   // The depth head: 0 = a sigmoid (the paper's); N >= 2 = a soft argmax over N
   // bins of normalised inverse depth (model/unet.h).
   int64_t depth_bins = 0;

@@ -24,6 +24,8 @@ NetOptions net_options(const Config& cfg) {
               cfg.model.fusion_guide_eps};
   o.read_illuminant = cfg.model.read_illuminant;
   o.illuminant_reader = {cfg.model.illuminant_block_px, cfg.model.illuminant_effective_blocks};
+  o.edge_prior = {cfg.model.edge_prior_weight, cfg.model.edge_prior_iterations, cfg.model.edge_prior_rho_start,
+                  cfg.model.edge_prior_rho_factor};
   o.layer_depths_m = d;
   o.preinverse_reg = cfg.model.preinverse_reg;
   o.residual_preinverse = cfg.model.residual == ResidualBase::preinverse;

@@ -65,6 +65,7 @@ HsdNetImpl::HsdNetImpl(const NetOptions& options, const torch::Tensor& upsamplin
               "defocus_cost grey needs the pre-inversion with one layer per entry of layer_depths_m");
   TORCH_CHECK(opt_.defocus_cost != DefocusCost::spectral || (opt_.residual_spectral_wiener && K > 0),
               "defocus_cost spectral needs the spectral Wiener base and layer_depths_m");
+  TORCH_CHECK(!(opt_.edge_prior.weight > 0) || opt_.residual_spectral_wiener, "edge_prior needs the spectral Wiener base");
   TORCH_CHECK(!opt_.fuse_defocus_reader || (opt_.residual_spectral_wiener && K > 0),
               "fuse_defocus_reader needs the spectral Wiener base and layer_depths_m");
   TORCH_CHECK(!(opt_.residual_preinverse && opt_.residual_spectral_wiener),
@@ -163,12 +164,16 @@ torch::Tensor HsdNetImpl::spectral_wiener(const torch::Tensor& image) const {
     k = WienerKeep();
     k.psf = TensorSnapshot(band_psf_), k.H = H, k.W = W;
   }
-  if (opt_.read_illuminant && !is_training()) {  // one prior per image
+  const bool edges = opt_.edge_prior.weight > 0 && !is_training();
+  if ((opt_.read_illuminant || edges) && !is_training()) {  // one prior per image; the edge prior's iterations
     const SpectralOtf otf = keepable ? kept_otf(H, W) : spectral_otf(band_psf_, H, W);
     std::vector<torch::Tensor> out;
     for (int64_t b = 0; b < image.size(0); ++b) {
       const torch::Tensor x = image.narrow(0, b, 1);
-      out.push_back(apply_spectral_wiener(spectral_wiener_filter(otf, sw_omega_, prior_for(x)), x).to(torch::kFloat32));
+      const SpectralPrior p = prior_for(x);
+      out.push_back((edges ? spectral_tv_cube(x, otf, sw_omega_, p, opt_.edge_prior)
+                           : apply_spectral_wiener(spectral_wiener_filter(otf, sw_omega_, p), x))
+                        .to(torch::kFloat32));
     }
     return torch::cat(out, 0);
   }

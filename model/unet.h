@@ -27,6 +27,7 @@
 #include "model/replica_group.h"
 #include "model/depth_fusion.h"
 #include "model/illuminant_reader.h"
+#include "model/spectral_tv.h"
 #include "model/spectral_wiener.h"
 #include "model/tensor_snapshot.h"
 
@@ -91,6 +92,11 @@ struct NetOptions {
   // is unchanged.
   bool read_illuminant = false;
   IlluminantReaderSettings illuminant_reader;  // its settings (model.illuminant_*)
+  // weight > 0 (needs residual_spectral_wiener): in eval mode the spectral
+  // Wiener base is the cube with a total-variation edge prior
+  // (spectral_tv.h), under the same prior (the illuminant reader's too);
+  // training mode is unchanged.
+  EdgePriorSettings edge_prior;
   // The rendering layers [m] (optics.depths_m, set by net_options): K for the
   // cost volume and the reader's depths.
   std::vector<double> layer_depths_m;
