@@ -15,14 +15,15 @@ namespace F = torch::nn::functional;
 
 namespace {
 
-// The per-direction Grams E_z[h_jz h_jzᴴ] of h_jz = Ω diag(K_z) u_j: the six
+// The per-direction Grams E_z[h_jz h_jzᴴ] of h_jz = Ω diag(K_z) u_j, Kf
+// [L, K, F] (K = 1 with the mean OTF gives (H̄ u_j)(H̄ u_j)ᴴ): the six
 // entries (00, 11, 22 real; 01, 02, 12 complex) [R, F] each.
 struct DirectionGrams {
   torch::Tensor t00, t11, t22, t01, t02, t12;
 };
 
 DirectionGrams direction_grams(const torch::Tensor& Kf, const torch::Tensor& Om, const torch::Tensor& Ur) {
-  const int64_t L = Kf.size(0), K = Kf.size(1), F_ = Kf.size(2), R = Ur.size(1);
+  const int64_t L = Kf.size(0), K = Kf.size(1), R = Ur.size(1);
   // rows (c, j): Ω_cλ u_λj, complex for the product with the OTFs
   const torch::Tensor Wq = (Om.unsqueeze(2) * Ur.unsqueeze(0)).transpose(1, 2).reshape({3 * R, L}).to(torch::kComplexDouble);
   const int64_t chunk = std::max<int64_t>(256, (int64_t(1) << 21) / std::max<int64_t>(1, 3 * R * K));
@@ -38,7 +39,6 @@ DirectionGrams direction_grams(const torch::Tensor& Kf, const torch::Tensor& Om,
     a02.push_back((q0 * q2.conj()).mean(1));
     a12.push_back((q1 * q2.conj()).mean(1));
   }
-  (void)F_;
   return {torch::cat(a00, 1), torch::cat(a11, 1), torch::cat(a22, 1),
           torch::cat(a01, 1), torch::cat(a02, 1), torch::cat(a12, 1)};
 }
@@ -88,8 +88,16 @@ torch::Tensor spectral_tv_cube(const torch::Tensor& image, const SpectralOtf& ot
   const torch::Tensor D2 = torch::real(Dy * Dy.conj()) + torch::real(Dx * Dx.conj());  // [F]
   const torch::Tensor Se = e.view({-1, 1}) * S.view({1, -1});                           // [R, F]
 
-  const DirectionGrams T = direction_grams(otf.Kf, Om, Ur);
+  // The mixture over the layers as the linear model Y = H̄ X + E, E uncorrelated
+  // with X, of covariance N = S (E_z[H_z Σ H_zᴴ] − H̄ Σ H̄ᴴ) + σ² I (the same
+  // first and second moments, hence the same LMMSE cube at ρ = 0); the x-step
+  // is then the exact minimiser of the quadratic energy, and
+  //   M(ρ) = Σ_j c_j T̄_j + N,  T̄_j = (H̄ u_j)(H̄ u_j)ᴴ.
   const torch::Tensor& Kbar = otf.Kbar;  // [L, F]
+  const DirectionGrams T = direction_grams(otf.Kf, Om, Ur), Tb = direction_grams(Kbar.unsqueeze(1), Om, Ur);
+  auto spread = [&](const torch::Tensor& t, const torch::Tensor& tb) { return (Se * (t - tb)).sum(0); };
+  const torch::Tensor n00 = spread(T.t00, Tb.t00) + s2, n11 = spread(T.t11, Tb.t11) + s2, n22 = spread(T.t22, Tb.t22) + s2;
+  const torch::Tensor n01 = spread(T.t01, Tb.t01), n02 = spread(T.t02, Tb.t02), n12 = spread(T.t12, Tb.t12);
 
   torch::Tensor y = image.to(f64) - torch::matmul(Om, mu).view({1, 3, 1, 1});
   y = F::pad(y, F::PadFuncOptions({r, nw - W - r, r, nh - H - r}).mode(torch::kReplicate));
@@ -98,8 +106,8 @@ torch::Tensor spectral_tv_cube(const torch::Tensor& image, const SpectralOtf& ot
   // The x-step for ρ (absolute, 1/radiance²) and Dᴴ V [B, L, F] (undefined: ρ = 0, the Wiener cube).
   auto x_step = [&](double rho, const torch::Tensor& DhV) {
     const torch::Tensor c = rho > 0 ? Se / (1.0 + rho * D2.view({1, -1}) * Se) : Se;  // [R, F]
-    const torch::Tensor m00 = (c * T.t00).sum(0) + s2, m11 = (c * T.t11).sum(0) + s2, m22 = (c * T.t22).sum(0) + s2;
-    const torch::Tensor m01 = (c * T.t01).sum(0), m02 = (c * T.t02).sum(0), m12 = (c * T.t12).sum(0);
+    const torch::Tensor m00 = (c * Tb.t00).sum(0) + n00, m11 = (c * Tb.t11).sum(0) + n11, m22 = (c * Tb.t22).sum(0) + n22;
+    const torch::Tensor m01 = (c * Tb.t01).sum(0) + n01, m02 = (c * Tb.t02).sum(0) + n02, m12 = (c * Tb.t12).sum(0) + n12;
     const torch::Tensor c00 = m11 * m22 - torch::real(m12 * m12.conj());
     const torch::Tensor c11 = m00 * m22 - torch::real(m02 * m02.conj());
     const torch::Tensor c22 = m00 * m11 - torch::real(m01 * m01.conj());

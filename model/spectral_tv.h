@@ -1,8 +1,9 @@
 // The spectral Wiener cube with an edge prior: the cube x that minimises
-//   E(x) = 1/(2σ²) ‖y − A x‖² + ½ (x − μ)ᵀ C⁻¹ (x − μ) + (λ/σ²) Σ_p ‖∇x(p)‖,
-// the first two terms those of the spectral Wiener cube (spectral_wiener.h:
-// the image formation of the paper's Eq. 2 averaged over the K layers, the
-// Gaussian prior S(f) Σ of the training spectra), the third a total variation
+//   E(x) = ½ (y − H̄ x)ᴴ N⁻¹ (y − H̄ x) + ½ (x − μ)ᵀ C⁻¹ (x − μ) + (λ/σ²) Σ_p ‖∇x(p)‖,
+// the first two terms those whose minimiser is the spectral Wiener cube
+// (spectral_wiener.h: the image formation of the paper's Eq. 2 with the
+// layer unknown, N below; the Gaussian prior C = S(f) Σ of the training
+// spectra), the third a total variation
 // coupled across the bands: ‖∇x(p)‖ is the norm of all L bands' forward
 // differences in x and y at pixel p, so the bands share their edges. A
 // linear estimate must blur a step it cannot resolve; this prior lets the
@@ -19,11 +20,13 @@
 //   C'(f) = U diag(c_j(f)) Uᵀ,  c_j = S e_j / (1 + ρ |D(f)|² S e_j),  ρ = ρ̃/σ²,
 // |D(f)|² = 4 sin²(π f_y) + 4 sin²(π f_x) (f in cycles per pixel), the prior's
 // mean moves to m = ρ C' Dᴴ V, and
-//   X̂ = m + C' H̄ᴴ M⁻¹ (Y − H̄ m),  M = Σ_j c_j E_z[h_jz h_jzᴴ] + σ² I,
-// h_jz = Ω diag(K_z) u_j [3], one 3×3 Hermitian solve per frequency as in
-// spectral_wiener.h. (With the layers mixed, the mean's spread over z is left
-// out of M; for one layer the x-step is the exact minimiser, and λ = 0 gives
-// the spectral Wiener cube.)
+//   X̂ = m + C' H̄ᴴ M⁻¹ (Y − H̄ m),  M = Σ_j c_j T̄_j + N,  T̄_j = (H̄ u_j)(H̄ u_j)ᴴ,
+// one 3×3 Hermitian solve per frequency as in spectral_wiener.h. The unknown
+// layer enters as the linear model Y = H̄ X + E with E uncorrelated with X and
+//   N = Cov(E) = S (E_z[H_z Σ H_zᴴ] − H̄ Σ H̄ᴴ) + σ² I,
+// which has the mixture's first and second moments, so ρ = 0 is the spectral
+// Wiener cube, every x-step is the exact minimiser of one quadratic energy,
+// and a vanishing λ keeps the Wiener cube as the splitting's fixed point.
 //
 // λ (`weight`) is in the image's units (a gradient norm of radiance: a step
 // smaller than about λ/ρ̃ is smoothed at the end); ρ̃ is relative to the
