@@ -23,6 +23,18 @@ namespace hsd::test {
 
 inline std::string source_path(const std::string& rel) { return std::string(HSD_SOURCE_DIR) + "/" + rel; }
 
+// A random symmetric positive-definite L x L covariance, float64 (a spectral prior's Σ).
+inline torch::Tensor random_spd(int64_t L, double scale) {
+  const torch::Tensor a = torch::rand({L, L}, torch::kFloat64);
+  return scale * (torch::matmul(a, a.t()) + 0.1 * torch::eye(L, torch::kFloat64));
+}
+
+// Random PSFs [L, K, P, P] in float64, each summing to 1, every pixel at least `floor` before normalising.
+inline torch::Tensor random_band_psfs(int64_t L, int64_t K, int64_t P, double floor) {
+  const torch::Tensor p = torch::rand({L, K, P, P}, torch::kFloat64) + floor;
+  return p / p.sum({2, 3}, true);
+}
+
 // A spec with explicit geometry; indices constant unless given.
 inline optics::PsfSpec make_spec(std::vector<double> wavelengths_m, std::vector<double> depths_m, int64_t n,
                                  double doe_pitch_m, double aperture_m, int64_t psf_size, double pixel_pitch_m,

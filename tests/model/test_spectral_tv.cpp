@@ -22,16 +22,6 @@ using namespace hsd;
 
 namespace {
 
-torch::Tensor spd(int64_t L, double scale) {
-  const torch::Tensor a = torch::rand({L, L}, torch::kFloat64);
-  return scale * (torch::matmul(a, a.t()) + 0.1 * torch::eye(L, torch::kFloat64));
-}
-
-torch::Tensor random_psfs(int64_t L, int64_t K, int64_t P, double floor) {
-  const torch::Tensor p = torch::rand({L, K, P, P}, torch::kFloat64) + floor;
-  return p / p.sum({2, 3}, true);
-}
-
 // Normalised Gaussian PSFs [L, 1, P, P], band l of width sigmas[l] px.
 torch::Tensor gaussian_psfs(const std::vector<double>& sigmas, int64_t P) {
   const int64_t L = int64_t(sigmas.size()), r = P / 2;
@@ -61,9 +51,9 @@ TEST_CASE("spectral TV: weight 0 is the spectral Wiener cube", "[spectral_tv]") 
   torch::manual_seed(3);
   const int64_t L = 5, K = 3;
   const torch::Tensor x = torch::rand({2, 3, 12, 15}, torch::kFloat64);
-  const torch::Tensor p = random_psfs(L, K, 7, 0.05);
+  const torch::Tensor p = test::random_band_psfs(L, K, 7, 0.05);
   const torch::Tensor omega = torch::rand({3, L}, torch::kFloat64);
-  const model::SpectralPrior prior{torch::rand({L}, torch::kFloat64), spd(L, 0.01), 1e-4};
+  const model::SpectralPrior prior{torch::rand({L}, torch::kFloat64), test::random_spd(L, 0.01), 1e-4};
   const torch::Tensor want = model::spectral_wiener_cube(x, p, omega, prior);
   const torch::Tensor got = model::spectral_tv_cube(x, model::spectral_otf(p, 12, 15), omega, prior, {});
   CHECK((got - want).abs().max().item<double>() < 1e-10 * want.abs().max().item<double>());
@@ -78,11 +68,11 @@ TEST_CASE("spectral TV: the Wiener cube is the splitting's fixed point as the we
   const int64_t L = 6;
   const torch::Tensor x = torch::rand({1, 3, 16, 14}, torch::kFloat64);
   const torch::Tensor omega = torch::rand({3, L}, torch::kFloat64);
-  const model::SpectralPrior prior{torch::rand({L}, torch::kFloat64), spd(L, 0.02), 1e-4};
+  const model::SpectralPrior prior{torch::rand({L}, torch::kFloat64), test::random_spd(L, 0.02), 1e-4};
   model::EdgePriorSettings s;
   s.weight = 1e-14, s.iterations = 10, s.rho_start = 1e-2, s.rho_factor = 2.0;
   for (int64_t K : {1, 3}) {
-    const torch::Tensor p = random_psfs(L, K, 7, K == 1 ? 0.05 : 0.0);
+    const torch::Tensor p = test::random_band_psfs(L, K, 7, K == 1 ? 0.05 : 0.0);
     const model::SpectralOtf otf = model::spectral_otf(p, 16, 14);
     const torch::Tensor w = model::spectral_wiener_cube(x, p, omega, prior);
     const double scale = w.abs().max().item<double>();
@@ -136,9 +126,9 @@ TEST_CASE("spectral TV: a piecewise-constant scene behind chromatic blur and noi
 TEST_CASE("spectral TV: bad settings, shapes and OTFs without layers are input errors", "[spectral_tv]") {
   const int64_t L = 3;
   const torch::Tensor x = torch::rand({1, 3, 8, 8}, torch::kFloat64);
-  const torch::Tensor p = random_psfs(L, 2, 5, 0.1);
+  const torch::Tensor p = test::random_band_psfs(L, 2, 5, 0.1);
   const torch::Tensor omega = torch::rand({3, L}, torch::kFloat64);
-  const model::SpectralPrior prior{torch::rand({L}, torch::kFloat64), spd(L, 0.01), 1e-4};
+  const model::SpectralPrior prior{torch::rand({L}, torch::kFloat64), test::random_spd(L, 0.01), 1e-4};
   const model::SpectralOtf otf = model::spectral_otf(p, 8, 8);
   auto with = [](double w, int64_t it, double r0, double rf) {
     model::EdgePriorSettings s;
@@ -183,8 +173,8 @@ TEST_CASE("spectral TV: the network's base uses the edge prior in eval mode only
   o.edge_prior.weight = 0.01, o.edge_prior.iterations = 4;
   const torch::Tensor omega = torch::rand({3, L}) + 0.1;
   model::HsdNet net(o, torch::rand({L, 3}));
-  net->set_spectral_prior(torch::rand({L}), spd(L, 0.01).to(torch::kFloat32), 1e-4, omega);
-  const torch::Tensor p = random_psfs(L, K, 5, 0.1).to(torch::kFloat32);
+  net->set_spectral_prior(torch::rand({L}), test::random_spd(L, 0.01).to(torch::kFloat32), 1e-4, omega);
+  const torch::Tensor p = test::random_band_psfs(L, K, 5, 0.1).to(torch::kFloat32);
   net->set_band_psf(p);
   const torch::Tensor x = torch::rand({2, 3, 12, 12});
   const model::SpectralPrior prior = net->spectral_prior();

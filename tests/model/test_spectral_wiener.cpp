@@ -32,12 +32,6 @@ torch::Tensor delta_psfs(int64_t L, int64_t K, int64_t P, c10::ScalarType dtype)
   return d;
 }
 
-// A random symmetric positive-definite L x L covariance.
-torch::Tensor spd(int64_t L, double scale) {
-  const torch::Tensor a = torch::rand({L, L}, torch::kFloat64);
-  return scale * (torch::matmul(a, a.t()) + 0.1 * torch::eye(L, torch::kFloat64));
-}
-
 // The estimator of model/spectral_wiener.h written out frequency by
 // frequency, independently of its factored products: H_z = Ω diag(K_z(f))
 // built explicitly, E = E_z[H_z Σ H_zᴴ] and H̄ = E_z[H_z] averaged, and
@@ -73,12 +67,6 @@ torch::Tensor reference_cube(const torch::Tensor& image, const torch::Tensor& ps
   return x.narrow(2, r, H).narrow(3, r, W) + prior.mean.view({1, L, 1, 1});
 }
 
-// Random PSFs [L, K, P, P] in float64, each summing to 1, every pixel at least `floor` before normalising.
-torch::Tensor random_psfs(int64_t L, int64_t K, int64_t P, double floor) {
-  const torch::Tensor p = torch::rand({L, K, P, P}, torch::kFloat64) + floor;
-  return p / p.sum({2, 3}, true);
-}
-
 // The filter against reference_cube on the same input: the largest difference over the largest value.
 double relative_error_to_reference(const torch::Tensor& x, const torch::Tensor& p, const torch::Tensor& omega,
                                    const model::SpectralPrior& prior) {
@@ -94,9 +82,9 @@ TEST_CASE("spectral Wiener: equals the LMMSE estimator solved frequency by frequ
   torch::manual_seed(21);
   const int64_t L = 5, K = 3;
   const torch::Tensor x = torch::rand({2, 3, 10, 13}, torch::kFloat64);
-  const torch::Tensor p = random_psfs(L, K, 7, 0.05);
+  const torch::Tensor p = test::random_band_psfs(L, K, 7, 0.05);
   const torch::Tensor omega = torch::rand({3, L}, torch::kFloat64);
-  const model::SpectralPrior prior{torch::rand({L}, torch::kFloat64), spd(L, 0.01), 1e-4};
+  const model::SpectralPrior prior{torch::rand({L}, torch::kFloat64), test::random_spd(L, 0.01), 1e-4};
   CHECK(relative_error_to_reference(x, p, omega, prior) < 1e-10);
   // float32 images: filtered in float64, the cube returned in float32
   const torch::Tensor want = reference_cube(x, p, omega, prior);
@@ -112,7 +100,7 @@ TEST_CASE("spectral Wiener: the paper's 25 bands and 7 layers, a covariance of r
   torch::manual_seed(5);
   const int64_t L = 25, K = 7;
   const torch::Tensor x = torch::rand({2, 3, 64, 70}, torch::kFloat64);
-  const torch::Tensor p = random_psfs(L, K, 9, 0.02);
+  const torch::Tensor p = test::random_band_psfs(L, K, 9, 0.02);
   const torch::Tensor omega = torch::rand({3, L}, torch::kFloat64);
   const torch::Tensor a = torch::rand({L, 6}, torch::kFloat64);
   const model::SpectralPrior prior{torch::rand({L}, torch::kFloat64), 0.01 * torch::matmul(a, a.t()), 1e-4};
@@ -124,7 +112,7 @@ TEST_CASE("spectral Wiener: an invertible camera without blur returns omega^-1 y
   const torch::Tensor omega = torch::eye(3, torch::kFloat64) + 0.3 * torch::rand({3, 3}, torch::kFloat64);
   const torch::Tensor x = torch::rand({2, 3, 11, 14}, torch::kFloat64);
   const torch::Tensor y = torch::einsum("cl,blhw->bchw", {omega, x});
-  model::SpectralPrior prior{torch::rand({3}, torch::kFloat64), spd(3, 0.01), 1e-14};
+  model::SpectralPrior prior{torch::rand({3}, torch::kFloat64), test::random_spd(3, 0.01), 1e-14};
   const torch::Tensor xh = model::spectral_wiener_cube(y, delta_psfs(3, 2, 5, torch::kFloat64), omega, prior);
   REQUIRE(xh.sizes() == x.sizes());
   CHECK((xh - x).abs().max().item<double>() < 1e-6);
@@ -135,7 +123,7 @@ TEST_CASE("spectral Wiener: a flat image gets the prior's LMMSE spectrum, and id
   torch::manual_seed(12);
   const int64_t L = 6;
   const torch::Tensor omega = torch::rand({3, L}, torch::kFloat64);
-  const torch::Tensor mu = torch::rand({L}, torch::kFloat64), sig = spd(L, 0.02);
+  const torch::Tensor mu = torch::rand({L}, torch::kFloat64), sig = test::random_spd(L, 0.02);
   const torch::Tensor yc = torch::tensor({0.3, 0.5, 0.2}, torch::kFloat64);
   const torch::Tensor y = yc.view({1, 3, 1, 1}).expand({1, 3, 9, 10}).contiguous();
   // Noise far below the DC term's signal: x = μ + Σ Ωᵀ (Ω Σ Ωᵀ)⁻¹ (y − Ω μ), whatever the blur.
@@ -207,7 +195,7 @@ TEST_CASE("spectral Wiener: gradients in the image and the PSFs match central di
   const torch::Tensor x = torch::rand({1, 3, 9, 11}, torch::kFloat64);
   const torch::Tensor p = torch::rand({L, 2, 5, 5}, torch::kFloat64) + 0.1;
   const torch::Tensor omega = torch::rand({3, L}, torch::kFloat64);
-  const model::SpectralPrior prior{torch::rand({L}, torch::kFloat64), spd(L, 0.01), 1e-3};
+  const model::SpectralPrior prior{torch::rand({L}, torch::kFloat64), test::random_spd(L, 0.01), 1e-3};
   const torch::Tensor w = torch::randn({1, L, 9, 11}, torch::kFloat64);
   auto f = [&](const torch::Tensor& xx, const torch::Tensor& pp) {
     return (model::spectral_wiener_cube(xx, pp / pp.sum({2, 3}, true), omega, prior) * w).sum();
@@ -247,7 +235,7 @@ TEST_CASE("spectral Wiener: the network keeps its filter while PSFs, prior and s
   model::HsdNet net(o, torch::rand({L, 3}));
   const torch::Tensor Om = torch::rand({3, L});
   torch::Tensor mu = torch::rand({L}) * 0.3;
-  const torch::Tensor sig = spd(L, 1e-3).to(torch::kFloat32);
+  const torch::Tensor sig = test::random_spd(L, 1e-3).to(torch::kFloat32);
   net->set_spectral_prior(mu, sig, 1e-5, Om);
   torch::Tensor psf = torch::rand({L, 2, 9, 9});
   psf = psf / psf.sum({2, 3}, true);
@@ -324,7 +312,7 @@ TEST_CASE("spectral Wiener: the network's residual on it starts at it, trains, r
   const torch::Tensor x = torch::rand({1, 3, 16, 16});
   CHECK_THROWS_WITH(a.net()->spectral_wiener(x), Catch::Contains("prior"));  // never set: refused, not zeros
   torch::manual_seed(15);
-  const torch::Tensor mu = torch::rand({L}) * 0.3, sig = spd(L, 1e-3).to(torch::kFloat32);
+  const torch::Tensor mu = torch::rand({L}) * 0.3, sig = test::random_spd(L, 1e-3).to(torch::kFloat32);
   a.net()->set_spectral_prior(mu, sig, 1e-5, a.sensor().omega);
   a.net()->start_at_baselines(1.0);
   {
@@ -369,7 +357,7 @@ TEST_CASE("spectral Wiener: train.spectral_wiener_doe_gradient = false leaves th
   train::Trainer a(trainer_cfg(true)), b(trainer_cfg(false));
   const int64_t L = int64_t(a.psf().spec().wavelengths_m.size());
   torch::manual_seed(15);
-  const torch::Tensor mu = torch::rand({L}) * 0.3, sig = spd(L, 1e-3).to(torch::kFloat32);
+  const torch::Tensor mu = torch::rand({L}) * 0.3, sig = test::random_spd(L, 1e-3).to(torch::kFloat32);
   for (train::Trainer* t : {&a, &b}) {
     t->net()->set_spectral_prior(mu, sig, 1e-5, t->sensor().omega);
     t->net()->start_at_baselines(1.0);
