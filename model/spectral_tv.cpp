@@ -71,11 +71,9 @@ torch::Tensor spectral_tv_cube(const torch::Tensor& image, const SpectralOtf& ot
 
   const torch::Tensor Om = omega.to(f64).detach(), mu = prior.mean.to(f64).reshape({L});
   const torch::Tensor Sig = prior.covariance.to(f64).detach();
-  // Σ = U diag(e) Uᵀ; directions with e at rounding level carry nothing (as spectral_wiener_factor)
-  const auto eig = torch::linalg_eigh(0.5 * (Sig + Sig.t()));
-  const torch::Tensor keep = std::get<0>(eig) > 1e-14 * std::get<0>(eig).abs().max().clamp_min(1e-300);
-  const torch::Tensor e = std::get<0>(eig).index({keep});                                // [R]
-  const torch::Tensor Ur = std::get<1>(eig).index({torch::indexing::Slice(), keep});    // [L, R]
+  // Σ = U diag(e) Uᵀ over the directions that carry variance
+  const SpectralDirections dirs = spectral_directions(Sig);
+  const torch::Tensor &e = dirs.e, &Ur = dirs.U;  // [R], [L, R]
   const torch::Tensor Uc = Ur.to(torch::kComplexDouble), Utc = Uc.t().contiguous();
   const torch::Tensor Oc = Om.to(torch::kComplexDouble), Otc = Oc.t().contiguous();
 
@@ -106,26 +104,17 @@ torch::Tensor spectral_tv_cube(const torch::Tensor& image, const SpectralOtf& ot
   // The x-step for ρ (absolute, 1/radiance²) and Dᴴ V [B, L, F] (undefined: ρ = 0, the Wiener cube).
   auto x_step = [&](double rho, const torch::Tensor& DhV) {
     const torch::Tensor c = rho > 0 ? Se / (1.0 + rho * D2.view({1, -1}) * Se) : Se;  // [R, F]
-    const torch::Tensor m00 = (c * Tb.t00).sum(0) + n00, m11 = (c * Tb.t11).sum(0) + n11, m22 = (c * Tb.t22).sum(0) + n22;
-    const torch::Tensor m01 = (c * Tb.t01).sum(0) + n01, m02 = (c * Tb.t02).sum(0) + n02, m12 = (c * Tb.t12).sum(0) + n12;
-    const torch::Tensor c00 = m11 * m22 - torch::real(m12 * m12.conj());
-    const torch::Tensor c11 = m00 * m22 - torch::real(m02 * m02.conj());
-    const torch::Tensor c22 = m00 * m11 - torch::real(m01 * m01.conj());
-    const torch::Tensor c01 = m02 * m12.conj() - m01 * m22;
-    const torch::Tensor c02 = m01 * m12 - m02 * m11;
-    const torch::Tensor c12 = m02 * m01.conj() - m00 * m12;
-    const torch::Tensor inv_det = 1.0 / (m00 * c00 + torch::real(m01 * c01.conj()) + torch::real(m02 * c02.conj()));
+    const Hermitian3Inverse Minv = hermitian3_inverse(
+        {(c * Tb.t00).sum(0) + n00, (c * Tb.t11).sum(0) + n11, (c * Tb.t22).sum(0) + n22,
+         (c * Tb.t01).sum(0) + n01, (c * Tb.t02).sum(0) + n02, (c * Tb.t12).sum(0) + n12});
     const torch::Tensor cc = c.to(torch::kComplexDouble);
     torch::Tensor mean, resid = Y;
     if (DhV.defined()) {
       mean = rho * torch::matmul(Uc, cc * torch::matmul(Utc, DhV));  // ρ C' Dᴴ V [B, L, F]
       resid = Y - torch::matmul(Oc, Kbar * mean);
     }
-    const torch::Tensor R0 = resid.select(1, 0), R1 = resid.select(1, 1), R2 = resid.select(1, 2);
-    const torch::Tensor Z = torch::stack({(c00 * R0 + c01 * R1 + c02 * R2) * inv_det,
-                                          (c01.conj() * R0 + c11 * R1 + c12 * R2) * inv_det,
-                                          (c02.conj() * R0 + c12.conj() * R1 + c22 * R2) * inv_det},
-                                         1);                               // M⁻¹ (Y − H̄ m) [B, 3, F]
+    const auto z = Minv.solve(resid.select(1, 0), resid.select(1, 1), resid.select(1, 2));
+    const torch::Tensor Z = torch::stack({z[0], z[1], z[2]}, 1);  // M⁻¹ (Y − H̄ m) [B, 3, F]
     const torch::Tensor g = Kbar.conj() * torch::matmul(Otc, Z);           // H̄ᴴ · [B, L, F]
     torch::Tensor X = torch::matmul(Uc, cc * torch::matmul(Utc, g));       // C' H̄ᴴ M⁻¹ (…)
     return mean.defined() ? X + mean : X;

@@ -13,17 +13,41 @@ namespace hsd::model {
 
 namespace F = torch::nn::functional;
 
-torch::Tensor spectral_wiener_factor(const torch::Tensor& omega, const torch::Tensor& covariance) {
+SpectralDirections spectral_directions(const torch::Tensor& covariance) {
   torch::NoGradGuard no_grad;
-  const auto f64 = torch::TensorOptions().dtype(torch::kFloat64).device(omega.device());
-  const torch::Tensor Om = omega.to(f64), Sig = covariance.to(f64);
-  const int64_t L = Om.size(1);
+  const torch::Tensor Sig = covariance.to(torch::kFloat64);
   const auto eig = torch::linalg_eigh(0.5 * (Sig + Sig.t()));
-  const torch::Tensor e = std::get<0>(eig), U = std::get<1>(eig);
+  const torch::Tensor e = std::get<0>(eig);
   // eigenvalues at rounding level (and negative ones, from rounding) carry nothing
   const torch::Tensor keep = e > 1e-14 * e.abs().max().clamp_min(1e-300);
-  const torch::Tensor V = (U * e.clamp_min(0).sqrt().view({1, L})).index({torch::indexing::Slice(), keep});  // [L, R]
-  return (Om.unsqueeze(2) * V.unsqueeze(0)).transpose(1, 2).reshape({-1, L}).contiguous();                     // [3R, L]
+  return {e.index({keep}), std::get<1>(eig).index({torch::indexing::Slice(), keep})};
+}
+
+Hermitian3Inverse hermitian3_inverse(const Hermitian3& m) {
+  Hermitian3Inverse v;
+  v.c00 = m.m11 * m.m22 - torch::real(m.m12 * m.m12.conj());
+  v.c11 = m.m00 * m.m22 - torch::real(m.m02 * m.m02.conj());
+  v.c22 = m.m00 * m.m11 - torch::real(m.m01 * m.m01.conj());
+  v.c01 = m.m02 * m.m12.conj() - m.m01 * m.m22;  // adj(M)_01
+  v.c02 = m.m01 * m.m12 - m.m02 * m.m11;          // adj(M)_02
+  v.c12 = m.m02 * m.m01.conj() - m.m00 * m.m12;  // adj(M)_12
+  v.inv_det = 1.0 / (m.m00 * v.c00 + torch::real(m.m01 * v.c01.conj()) + torch::real(m.m02 * v.c02.conj()));
+  return v;
+}
+
+std::array<torch::Tensor, 3> Hermitian3Inverse::solve(const torch::Tensor& r0, const torch::Tensor& r1,
+                                                      const torch::Tensor& r2) const {
+  return {(c00 * r0 + c01 * r1 + c02 * r2) * inv_det, (c01.conj() * r0 + c11 * r1 + c12 * r2) * inv_det,
+          (c02.conj() * r0 + c12.conj() * r1 + c22 * r2) * inv_det};
+}
+
+torch::Tensor spectral_wiener_factor(const torch::Tensor& omega, const torch::Tensor& covariance) {
+  torch::NoGradGuard no_grad;
+  const torch::Tensor Om = omega.to(torch::kFloat64);
+  const int64_t L = Om.size(1);
+  const SpectralDirections d = spectral_directions(covariance);
+  const torch::Tensor V = d.U * d.e.sqrt().view({1, -1});                                   // [L, R]
+  return (Om.unsqueeze(2) * V.unsqueeze(0)).transpose(1, 2).reshape({-1, L}).contiguous();  // [3R, L]
 }
 
 void check_spectral_inputs(const char* who, const torch::Tensor& image, const torch::Tensor& psf,
@@ -115,19 +139,9 @@ SpectralWienerFilter spectral_wiener_filter(const SpectralOtf& otf, const torch:
   w.S = spectral_wiener_psd(otf.nh, otf.nw, prior.psd_exponent, otf.Kf.device());
   const torch::Tensor& S = w.S;
 
-  // M = S A + σ² I (Hermitian), its inverse by cofactors, elementwise over the
-  // frequencies (a batched LAPACK solve of 3×3 systems is ~10× slower).
+  // M = S A + σ² I (Hermitian), inverted by cofactors per frequency.
   const double s2 = prior.noise_var;
-  const torch::Tensor m00 = S * A00 + s2, m11 = S * A11 + s2, m22 = S * A22 + s2;  // real
-  const torch::Tensor m01 = S * A01, m02 = S * A02, m12 = S * A12;                 // complex; m10 = conj(m01), ...
-  w.c00 = m11 * m22 - torch::real(m12 * m12.conj());
-  w.c11 = m00 * m22 - torch::real(m02 * m02.conj());
-  w.c22 = m00 * m11 - torch::real(m01 * m01.conj());
-  w.c01 = m02 * m12.conj() - m01 * m22;  // adj(M)_01
-  w.c02 = m01 * m12 - m02 * m11;          // adj(M)_02
-  w.c12 = m02 * m01.conj() - m00 * m12;  // adj(M)_12
-  const torch::Tensor det = m00 * w.c00 + torch::real(m01 * w.c01.conj()) + torch::real(m02 * w.c02.conj());
-  w.inv_det = 1.0 / det;
+  w.Minv = hermitian3_inverse({S * A00 + s2, S * A11 + s2, S * A22 + s2, S * A01, S * A02, S * A12});
   w.otf.Kf = torch::Tensor();  // applying needs K̄ only
   return w;
 }
@@ -148,12 +162,8 @@ torch::Tensor apply_spectral_wiener(const SpectralWienerFilter& w, const torch::
   torch::Tensor y = image.to(f64) - torch::matmul(Om, w.mu).view({1, 3, 1, 1});
   y = F::pad(y, F::PadFuncOptions({r, nw - W - r, r, nh - H - r}).mode(torch::kReplicate));
   const torch::Tensor Y = torch::fft::rfft2(y).reshape({B, 3, F_});
-  const torch::Tensor Y0 = Y.select(1, 0), Y1 = Y.select(1, 1), Y2 = Y.select(1, 2);
-  const torch::Tensor& id = w.inv_det;
-  const torch::Tensor Z0 = (w.c00 * Y0 + w.c01 * Y1 + w.c02 * Y2) * id;
-  const torch::Tensor Z1 = (w.c01.conj() * Y0 + w.c11 * Y1 + w.c12 * Y2) * id;
-  const torch::Tensor Z2 = (w.c02.conj() * Y0 + w.c12.conj() * Y1 + w.c22 * Y2) * id;
-  const torch::Tensor Zr = torch::view_as_real(torch::stack({Z0, Z1, Z2}, 0)).reshape({3, B * F_ * 2});  // [3, B·F·2]
+  const auto Z = w.Minv.solve(Y.select(1, 0), Y.select(1, 1), Y.select(1, 2));
+  const torch::Tensor Zr = torch::view_as_real(torch::stack({Z[0], Z[1], Z[2]}, 0)).reshape({3, B * F_ * 2});  // [3, B·F·2]
   torch::Tensor u = torch::view_as_complex(torch::matmul(Om.t(), Zr).view({L, B, F_, 2}));              // Ωᵀ Z [L, B, F]
   u = u * o.Kbar.conj().unsqueeze(1);
   const torch::Tensor xr = torch::matmul(w.Sig, torch::view_as_real(u).reshape({L, B * F_ * 2})).view({L, B, F_, 2});

@@ -24,6 +24,8 @@
 // image's precision before the inverse FFT. Differentiable in the image and
 // the PSFs, not in Ω or the prior.
 #pragma once
+#include <array>
+
 #include <torch/types.h>
 
 namespace hsd::model {
@@ -34,6 +36,32 @@ struct SpectralPrior {
   double noise_var = 0;      // σ² per pixel, in the image's units (> 0)
   double psd_exponent = 2.0; // α of S(f)
 };
+
+// Σ's eigen-directions that carry variance: Σ = U diag(e) Uᵀ with the
+// eigenvalues at rounding level (below 1e-14 of the largest, and the negative
+// ones rounding makes) dropped. covariance [L, L] -> e [R], U [L, R], float64.
+// No gradient. The cut every user of the spectral prior shares.
+struct SpectralDirections {
+  torch::Tensor e, U;
+};
+SpectralDirections spectral_directions(const torch::Tensor& covariance);
+
+// A field of 3×3 Hermitian matrices, one per spatial frequency: the real
+// diagonal m00, m11, m22 [F] (float64) and the complex upper triangle m01,
+// m02, m12 [F] (complex128; m10 = conj(m01), ...). Inverted by cofactors,
+// elementwise over the frequencies (a batched LAPACK solve of 3×3 systems is
+// ~10× slower): adj(M) (its real diagonal c00, c11, c22 and upper triangle
+// c01, c02, c12) and 1/det M. Differentiable. M must be positive definite
+// (the noise term makes every M here so); no check.
+struct Hermitian3 {
+  torch::Tensor m00, m11, m22, m01, m02, m12;
+};
+struct Hermitian3Inverse {
+  torch::Tensor c00, c11, c22, c01, c02, c12, inv_det;
+  // M⁻¹ r for r = (r0, r1, r2), each [..., F] broadcasting against [F].
+  std::array<torch::Tensor, 3> solve(const torch::Tensor& r0, const torch::Tensor& r1, const torch::Tensor& r2) const;
+};
+Hermitian3Inverse hermitian3_inverse(const Hermitian3& m);
 
 // Σ = V Vᵀ from Σ's eigen-decomposition (eigenvalues below 1e-14 of the
 // largest dropped: R columns), as the rows Ω_cλ V_λj: omega [3, L], covariance
@@ -66,12 +94,12 @@ struct SpectralOtf {
 SpectralOtf spectral_otf(const torch::Tensor& psf, int64_t H, int64_t W);
 
 // Everything of the estimator but the image: Ω, μ, Σ (float64), S(f) and the
-// per-frequency cofactors of M = S·E_z[H_z Σ H_zᴴ] + σ² I with 1/det M
-// (flattened [nh·(nw/2+1)]). Differentiable in the PSFs through otf.
+// inverse of M = S·E_z[H_z Σ H_zᴴ] + σ² I per frequency (flattened
+// [nh·(nw/2+1)]). Differentiable in the PSFs through otf.
 struct SpectralWienerFilter {
   SpectralOtf otf;  // its Kbar and sizes (Kf is not kept)
   torch::Tensor Om, mu, Sig, S;
-  torch::Tensor c00, c11, c22, c01, c02, c12, inv_det;
+  Hermitian3Inverse Minv;
 };
 // otf of L bands, omega [3, L], the prior of L bands (InputError otherwise).
 SpectralWienerFilter spectral_wiener_filter(const SpectralOtf& otf, const torch::Tensor& omega, const SpectralPrior& prior);

@@ -78,6 +78,33 @@ double relative_error_to_reference(const torch::Tensor& x, const torch::Tensor& 
 
 }  // namespace
 
+TEST_CASE("spectral Wiener: the 3x3 Hermitian inverse by cofactors equals LAPACK's, and the eigen cut drops only null directions",
+          "[spectral_wiener]") {
+  torch::manual_seed(11);
+  const int64_t F = 40;
+  // M = A Aᴴ + 0.1 I per frequency, complex, spanning a few decades in scale
+  const torch::Tensor A = torch::randn({F, 3, 3}, torch::kComplexDouble);
+  const torch::Tensor scale = torch::pow(10.0, torch::linspace(-6, 2, F, torch::kFloat64)).view({F, 1, 1});
+  const torch::Tensor M = (torch::matmul(A, A.conj().transpose(1, 2)) + 0.1 * torch::eye(3, torch::kComplexDouble)) * scale;
+  auto at = [&](int64_t i, int64_t j) { return M.select(1, i).select(1, j).contiguous(); };
+  const model::Hermitian3Inverse inv = model::hermitian3_inverse(
+      {torch::real(at(0, 0)), torch::real(at(1, 1)), torch::real(at(2, 2)), at(0, 1), at(0, 2), at(1, 2)});
+  const torch::Tensor r = torch::randn({2, 3, F}, torch::kComplexDouble);  // a batch of 2 right-hand sides
+  const auto z = inv.solve(r.select(1, 0), r.select(1, 1), r.select(1, 2));
+  const torch::Tensor got = torch::stack({z[0], z[1], z[2]}, 1);                                             // [2, 3, F]
+  const torch::Tensor want = torch::linalg_solve(M.unsqueeze(0), r.permute({0, 2, 1}).unsqueeze(3)).squeeze(3).permute({0, 2, 1});
+  CHECK(((got - want).abs() / want.abs().clamp_min(1e-300)).max().item<double>() < 1e-9);
+
+  // Σ of rank 2 in 4 bands (plus rounding): two directions kept, Σ rebuilt from them
+  const torch::Tensor B = torch::randn({4, 2}, torch::kFloat64);
+  const torch::Tensor sig = torch::matmul(B, B.t());
+  const model::SpectralDirections d = model::spectral_directions(sig);
+  REQUIRE(d.e.numel() == 2);
+  CHECK((d.e > 0).all().item<bool>());
+  CHECK(torch::allclose(torch::matmul(d.U * d.e.view({1, -1}), d.U.t()), sig, 1e-12, 1e-12));
+  CHECK(model::spectral_directions(test::random_spd(5, 1e-3)).e.numel() == 5);
+}
+
 TEST_CASE("spectral Wiener: equals the LMMSE estimator solved frequency by frequency", "[spectral_wiener]") {
   torch::manual_seed(21);
   const int64_t L = 5, K = 3;
