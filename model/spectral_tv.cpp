@@ -70,9 +70,8 @@ torch::Tensor spectral_tv_cube(const torch::Tensor& image, const SpectralOtf& ot
   const double s2 = prior.noise_var;
 
   const torch::Tensor Om = omega.to(f64).detach(), mu = prior.mean.to(f64).reshape({L});
-  const torch::Tensor Sig = prior.covariance.to(f64).detach();
   // Σ = U diag(e) Uᵀ over the directions that carry variance
-  const SpectralDirections dirs = spectral_directions(Sig);
+  const SpectralDirections dirs = spectral_directions(prior.covariance);
   const torch::Tensor &e = dirs.e, &Ur = dirs.U;  // [R], [L, R]
   const torch::Tensor Uc = Ur.to(torch::kComplexDouble), Utc = Uc.t().contiguous();
   const torch::Tensor Oc = Om.to(torch::kComplexDouble), Otc = Oc.t().contiguous();
