@@ -225,6 +225,34 @@ TEST_CASE("the launchers print the usage without the app and start the app with 
   CHECK_THAT(r.err, Catch::Contains("--bogus"));
 }
 
+TEST_CASE("the launchers set OpenBLAS's short idle polling for training only and keep the caller's value", "[app]") {
+  // Each launcher beside a stand-in app (a script printing what it was given).
+  const fs::path d = fs::temp_directory_path() / "hsd_test_launcher_env";
+  fs::remove_all(d);
+  fs::create_directories(d / "bin");
+  fs::create_directories(d / "libexec");
+  for (const std::string app : {"hsd_train", "hsd_ablate", "hsd_bench", "hsd_simulate", "hsd_eval"}) {
+    fs::copy_file(fs::path(HSD_BIN_DIR) / app, d / "bin" / app);
+    std::ofstream(d / "libexec" / app) << "#!/bin/sh\necho \"$OPENBLAS_THREAD_TIMEOUT|$OMP_WAIT_POLICY|$1\"\n";
+    fs::permissions(d / "libexec" / app, fs::perms::owner_all);
+  }
+  const auto env_of = [&](const std::string& cmd) {
+    const auto [out, code] = capture("env -u OPENBLAS_THREAD_TIMEOUT -u OMP_WAIT_POLICY " + cmd + " 2>&1");
+    CHECK(code == 0);
+    return out;
+  };
+  const std::string bin = (d / "bin").string() + "/";
+  CHECK(env_of(bin + "hsd_train --config x") == "4|PASSIVE|--config\n");
+  CHECK(env_of(bin + "hsd_ablate --config x") == "4|PASSIVE|--config\n");
+  CHECK(env_of(bin + "hsd_bench train") == "4|PASSIVE|train\n");
+  CHECK(env_of(bin + "hsd_bench sim") == "|PASSIVE|sim\n");
+  CHECK(env_of(bin + "hsd_simulate --config x") == "|PASSIVE|--config\n");
+  CHECK(env_of(bin + "hsd_eval --config x") == "|PASSIVE|--config\n");
+  CHECK(env_of("OPENBLAS_THREAD_TIMEOUT=20 OMP_WAIT_POLICY=ACTIVE " + bin + "hsd_train --config x") ==
+        "20|ACTIVE|--config\n");
+  fs::remove_all(d);
+}
+
 TEST_CASE("hsd_curves compares runs' metrics in one plot per column with a table of last values", "[app]") {
   const fs::path d = fs::temp_directory_path() / "hsd_test_curves";
   fs::remove_all(d);
