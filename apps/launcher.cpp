@@ -16,8 +16,8 @@
 // on an AVX-512 EPYC guest, paired 200-step quick trainings: 0.33-0.35 s per
 // step against 0.40-0.41 s, system time 10-11 s against 47 s, the same losses.
 // The simulation's back-to-back products are faster with the polling
-// (hsd_bench sim, seven layers: 0.65-0.81 s against 0.75-0.90 s), so the other apps keep it
-// (docs/benchmarks.md, "OpenBLAS's idle polling").
+// (hsd_bench sim, seven layers: 0.65-0.81 s against 0.75-0.90 s), so the
+// other apps keep it (docs/benchmarks.md, "OpenBLAS's idle polling").
 #include <unistd.h>
 
 #include <cerrno>
