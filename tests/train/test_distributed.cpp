@@ -5,7 +5,8 @@
 // equal to batch norm of the whole batch (float64: output, input and parameter
 // gradients, running statistics); noise draws keyed to the global batch; two
 // trainer ranks with batch b equal to one trainer with batch 2b; a stalled
-// rank ending the other's collective within the timeout. Then hsd_train as
+// rank ending the other's collective within the timeout; a write to an exited
+// peer failing instead of killing the rank (SIGPIPE). Then hsd_train as
 // users launch it: two ranks against one process, resume, a killed and a
 // stalled rank, bad environments.
 #include <catch2/catch.hpp>
@@ -16,6 +17,10 @@
 #include <fstream>
 #include <map>
 #include <thread>
+#include <csignal>
+#include <cerrno>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include <nlohmann/json.hpp>
 
@@ -443,6 +448,30 @@ TEST_CASE("distributed: a rank that stops answering ends the other's collective 
   CHECK_THAT(message, Catch::Contains("the loss of step 7"));
   CHECK(seconds >= 2.5);
   CHECK(seconds < 12.0);
+}
+
+TEST_CASE("distributed: once a rank joins, a write to an exited peer's socket fails with EPIPE instead of killing the rank",
+          "[distributed]") {
+  // hsd_train's rank 0 was once ended by SIGPIPE (status 141, no message) while its peer exited over a
+  // config mismatch. The default disposition is restored first, so the join itself must change it.
+  struct sigaction dfl {}, old {};
+  dfl.sa_handler = SIG_DFL;
+  REQUIRE(::sigaction(SIGPIPE, &dfl, &old) == 0);
+  DistributedConfig cfg;
+  cfg.timeout_s = 30;
+  run_ranks(2, cfg, [](int, std::shared_ptr<train::DataParallel> g) { g->barrier("after joining"); });
+  struct sigaction now {};
+  REQUIRE(::sigaction(SIGPIPE, nullptr, &now) == 0);
+  REQUIRE(now.sa_handler == SIG_IGN);  // only then is the write below safe for this test binary
+  int fds[2];
+  REQUIRE(::socketpair(AF_UNIX, SOCK_STREAM, 0, fds) == 0);
+  ::close(fds[1]);  // the peer is gone
+  const char byte = 'x';
+  const ssize_t n = ::write(fds[0], &byte, 1);
+  const int err = errno;
+  ::close(fds[0]);
+  CHECK(n == -1);
+  CHECK(err == EPIPE);
 }
 
 // ---- hsd_train as users launch it -----------------------------------------
