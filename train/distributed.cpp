@@ -136,12 +136,12 @@ DataParallel::DataParallel(const DistributedEnv& env, const DistributedConfig& c
   impl_->cfg = cfg;
   const auto timeout = std::chrono::milliseconds(int64_t(cfg.timeout_s * 1000.0));
   const std::string where = env.master_addr + ":" + std::to_string(env.master_port);
-  // A write to a socket whose peer has exited raises SIGPIPE, whose default action ends the process
-  // at once with status 141 and no message (seen: rank 0 killed while rank 1 exited over a config
-  // mismatch, about 1 run in 20). Python ignores SIGPIPE at start-up, which is why PyTorch's Gloo and
-  // TCPStore report such a write as an error instead; ignored here too, the write fails with EPIPE
-  // and the collective's failure reaches wait() as a DistributedError (exit 4). Process-wide, from
-  // the moment a rank joins: stdout/stderr writes to a closed pipe then fail instead of killing it.
+  // A write to a socket whose peer has exited (Gloo's pairs write without MSG_NOSIGNAL) raises
+  // SIGPIPE, whose default action ends the process at once with status 141 and no message (seen:
+  // rank 0 killed while rank 1 exited over a config mismatch, about 1 run in 20). Python ignores
+  // SIGPIPE at start-up, so PyTorch's ranks see such a write fail instead; ignored here too, it
+  // fails with EPIPE and surfaces as a DistributedError (exit 4). Process-wide, from the moment a
+  // rank joins: stdout/stderr writes to a closed pipe then fail instead of killing the process.
   std::signal(SIGPIPE, SIG_IGN);
   c10d::TCPStoreOptions so;
   so.port = uint16_t(env.master_port);

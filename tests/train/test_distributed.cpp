@@ -454,9 +454,9 @@ TEST_CASE("distributed: once a rank joins, a write to an exited peer's socket fa
           "[distributed]") {
   // hsd_train's rank 0 was once ended by SIGPIPE (status 141, no message) while its peer exited over a
   // config mismatch. The default disposition is restored first, so the join itself must change it.
-  struct sigaction dfl {}, old {};
+  struct sigaction dfl {};
   dfl.sa_handler = SIG_DFL;
-  REQUIRE(::sigaction(SIGPIPE, &dfl, &old) == 0);
+  REQUIRE(::sigaction(SIGPIPE, &dfl, nullptr) == 0);
   DistributedConfig cfg;
   cfg.timeout_s = 30;
   run_ranks(2, cfg, [](int, std::shared_ptr<train::DataParallel> g) { g->barrier("after joining"); });
