@@ -30,6 +30,10 @@ struct SceneMetrics {
   double baseline_wiener_hs_psnr_db = 0, baseline_wiener_hs_ssim = 0;  // Wiener deconvolution + upsampling
   // The spectral Wiener (LMMSE) cube (baselines.h); NaN when no prior is known.
   double baseline_spectral_wiener_hs_psnr_db = std::nan(""), baseline_spectral_wiener_hs_ssim = std::nan("");
+  // A reference, not a baseline: the same LMMSE cube with each pixel's
+  // rendering layer known (model/layered_spectral_wiener.h), what the depth
+  // would add to the linear base; NaN when no prior is known.
+  double depth_known_spectral_wiener_hs_psnr_db = std::nan("");
   // The network's residual base alone, no U-Net (model.spectral_map =
   // "learned": its learned map on its base; model.read_illuminant: the
   // spectral Wiener cube under the light read); NaN otherwise.

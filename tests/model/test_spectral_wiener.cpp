@@ -4,7 +4,9 @@
 // one layer), recovery of a blurred band through another band's channel,
 // agreement with the estimator solved frequency by frequency, a float64
 // gradient check, the moments by hand, the noise variance by hand, and the
-// network's residual on it (training, checkpoint).
+// network's residual on it (training, checkpoint). The layered cube
+// (model/layered_spectral_wiener.h): each layer's cube against the reference
+// with that layer alone, its hat weights, and its gain where the depth is known.
 #include <catch2/catch.hpp>
 
 #include <torch/torch.h>
@@ -16,6 +18,7 @@
 #include "data/spectral_moments.h"
 #include "doe_gradient_cut.h"
 #include "helpers.h"
+#include "model/layered_spectral_wiener.h"
 #include "model/spectral_wiener.h"
 #include "model/tensor_snapshot.h"
 #include "model/unet.h"
@@ -398,4 +401,77 @@ TEST_CASE("spectral Wiener: train.spectral_wiener_doe_gradient = false leaves th
   bt.radiance = torch::rand({2, L, 16, 16});
   bt.depth_m = 0.5 + torch::rand({2, 1, 16, 16});
   test::check_doe_gradient_cut(a, b, bt);
+}
+
+TEST_CASE("layered spectral Wiener: each layer's cube is the estimator with that layer alone, and knowing the layer beats the mixture",
+          "[spectral_wiener]") {
+  torch::manual_seed(31);
+  const int64_t L = 5, K = 3, P = 9, H = 64, W = 60;
+  const torch::Tensor omega = torch::rand({3, L}, torch::kFloat64);
+  const torch::Tensor mu = torch::rand({L}, torch::kFloat64), sig = test::random_spd(L, 0.02);
+  // (noise well above rounding: a deconvolution of an image whose borders the
+  // filter only replicates must not trust the frequencies its blur nearly removes)
+  const model::SpectralPrior prior{mu, sig, 1e-3};
+  // layer 0 sharp, layers 1 and 2 ever wider blurs
+  torch::Tensor psf = torch::zeros({L, K, P, P}, torch::kFloat64);
+  psf.select(1, 0).select(1, P / 2).select(1, P / 2).fill_(1.0);
+  for (int64_t z = 1; z < K; ++z) {
+    const torch::Tensor g = torch::arange(P, torch::kFloat64) - double(P / 2);
+    const torch::Tensor e = torch::exp(-(g.view({-1, 1}).square() + g.view({1, -1}).square()) / (2.0 * double(z) * double(z)));
+    psf.select(1, z).copy_((e / e.sum()).expand({L, P, P}));
+  }
+  const torch::Tensor img = torch::rand({2, 3, H, W}, torch::kFloat64);
+  const torch::Tensor cubes = model::layered_spectral_wiener_cubes(img, model::spectral_otf(psf, H, W), omega, prior);
+  REQUIRE(cubes.sizes() == torch::IntArrayRef{2, K, L, H, W});
+  for (int64_t z = 0; z < K; ++z) {
+    INFO("layer " << z);
+    const torch::Tensor want = reference_cube(img, psf.narrow(1, z, 1), omega, prior);
+    CHECK((cubes.select(1, z) - want).abs().max().item<double>() < 1e-9 * want.abs().max().item<double>());
+  }
+  // A scene drawn from the prior, imaged through layer 2 alone: its own layer's
+  // cube is closer to it than the mixture over the three layers.
+  const torch::Tensor white = torch::randn({1, L, H, W}, torch::kFloat64);
+  const torch::Tensor chol = torch::linalg_cholesky(sig);
+  torch::Tensor x = mu.view({1, L, 1, 1}) + torch::einsum("lm,bmhw->blhw", {chol, white});
+  for (int i = 0; i < 3; ++i)  // a smoother texture, nearer the prior's falling power spectrum
+    x = F::avg_pool2d(F::pad(x, F::PadFuncOptions({1, 1, 1, 1}).mode(torch::kReplicate)), F::AvgPool2dFuncOptions(3).stride(1));
+  const torch::Tensor xp = F::pad(x, F::PadFuncOptions({P / 2, P / 2, P / 2, P / 2}).mode(torch::kReplicate));
+  const torch::Tensor blurred = F::conv2d(xp, psf.select(1, 2).unsqueeze(1).flip({2, 3}), F::Conv2dFuncOptions().groups(L));
+  const torch::Tensor y = torch::einsum("cl,blhw->bchw", {omega, blurred});
+  const torch::Tensor known = model::layered_spectral_wiener_cubes(y, model::spectral_otf(psf, H, W), omega, prior).select(1, 2);
+  const torch::Tensor mixture = model::spectral_wiener_cube(y, psf, omega, prior);
+  // (inside a margin of the blur's reach: the filter's replicated borders are not the scene's)
+  auto err = [&](const torch::Tensor& c) {
+    return (c - x).narrow(2, 2 * P, H - 4 * P).narrow(3, 2 * P, W - 4 * P).square().mean().item<double>();
+  };
+  const double e_known = err(known), e_mix = err(mixture);
+  INFO("squared error, layer known " << e_known << ", mixture " << e_mix);
+  CHECK(e_known < 0.8 * e_mix);
+  CHECK_THROWS_AS(model::layered_spectral_wiener_cubes(img, model::SpectralOtf(), omega, prior), InputError);
+}
+
+TEST_CASE("layered spectral Wiener: hat weights in inverse depth pick a layer at its depth, split between neighbours, and blend",
+          "[spectral_wiener]") {
+  const std::vector<double> layers{0.5, 2.0, 1.0};  // inverse 2, 0.5, 1: given out of order
+  // 0.5 m, 2 m, 1 m, 1/1.5 m (halfway between 1 and 2 m^-1), 1.6 m (a quarter of the way from 0.5 to 1 m^-1), 0.3 m and 5 m (beyond the ends)
+  const torch::Tensor d = torch::tensor({0.5, 2.0, 1.0, 1.0 / 1.5, 1.6, 0.3, 5.0}, torch::kFloat64).view({1, 1, 1, 7});
+  const torch::Tensor w = model::inverse_depth_layer_weights(d, layers).to(torch::kFloat64)[0].select(1, 0);  // [K, 7]
+  const torch::Tensor want = torch::tensor({{1.0, 0.0, 0.0, 0.5, 0.0, 1.0, 0.0},
+                                            {0.0, 1.0, 0.0, 0.0, 0.75, 0.0, 1.0},
+                                            {0.0, 0.0, 1.0, 0.5, 0.25, 0.0, 0.0}}, torch::kFloat64);
+  CHECK((w - want).abs().max().item<double>() < 1e-6);
+  CHECK((w.sum(0) - 1.0).abs().max().item<double>() < 1e-6);
+  // the blend of one-hot weights is the layer's cube
+  const torch::Tensor cubes = torch::rand({1, 3, 4, 1, 7});
+  const torch::Tensor blend = model::blend_layer_cubes(cubes, w.to(torch::kFloat32).view({1, 3, 1, 7}));
+  using torch::indexing::Slice;
+  auto got = [&](int64_t px) { return blend.index({0, Slice(), 0, px}); };                // [4]
+  auto layer = [&](int64_t z, int64_t px) { return cubes.index({0, z, Slice(), 0, px}); };  // [4]
+  CHECK(torch::allclose(got(2), layer(2, 2)));
+  CHECK(torch::allclose(got(3), 0.5 * (layer(0, 3) + layer(2, 3))));
+  CHECK(torch::allclose(got(4), 0.75 * layer(1, 4) + 0.25 * layer(2, 4)));
+  CHECK_THROWS_AS(model::inverse_depth_layer_weights(d, {1.0, 1.0}), InputError);
+  CHECK_THROWS_AS(model::inverse_depth_layer_weights(d, {}), InputError);
+  CHECK_THROWS_AS(model::inverse_depth_layer_weights(torch::zeros({1, 1, 2, 2}), layers), InputError);
+  CHECK_THROWS_AS(model::blend_layer_cubes(cubes, torch::ones({1, 2, 1, 7})), InputError);
 }
