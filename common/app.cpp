@@ -115,10 +115,13 @@ void use_passive_openmp(char** argv) {
   ::execv("/proc/self/exe", argv);  // returns only on failure: carry on as we are
 }
 
-void keep_freed_memory(int64_t trim_threshold_mib) {
+void keep_freed_memory(int64_t trim_threshold_mib, bool large_blocks_too) {
 #ifdef __GLIBC__
   mallopt(M_MMAP_THRESHOLD, 32 << 20);
+  mallopt(M_MMAP_MAX, large_blocks_too ? 0 : 65536);  // 0: no block is mmapped (65536 is glibc's default)
   mallopt(M_TRIM_THRESHOLD, int(std::min<int64_t>(trim_threshold_mib, 2047) << 20));
+#else
+  (void)trim_threshold_mib, (void)large_blocks_too;
 #endif
 }
 

@@ -54,8 +54,14 @@ void use_passive_openmp(char** argv);
 // so each training step's large temporaries arrive as fresh pages: about 45,000
 // page faults (~180 MiB zeroed by the kernel) per PSF + sensor step, 20% of its
 // time. This keeps blocks up to 32 MiB in the heap and trims it only above
-// trim_threshold_mib (1 GiB) of free space; peak memory is unchanged. No-op off glibc.
-void keep_freed_memory(int64_t trim_threshold_mib = 1024);
+// trim_threshold_mib (1 GiB) of free space; peak memory is unchanged. With
+// large_blocks_too, blocks above 32 MiB come from the heap as well (glibc
+// never mmaps one, M_MMAP_MAX = 0): the study config's spectral Wiener
+// filter and OTFs (25 bands x 7 layers on a 240-px grid, 46-81 MiB each) were
+// page-faulted in afresh every step, which on a paravirtualised guest took
+// half its step (docs/benchmarks.md, "Large blocks from the heap"); the heap
+// then holds ~250 MiB more at its peak. No-op off glibc.
+void keep_freed_memory(int64_t trim_threshold_mib = 1024, bool large_blocks_too = true);
 // Returns the heap's free memory to the kernel now (malloc_trim). No-op off glibc.
 void release_freed_memory();
 
