@@ -186,14 +186,14 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     m.baseline_wiener_hs_psnr_db = psnr_db(wup, radiance, m.data_range, valid);
     m.baseline_wiener_hs_ssim = ssim(wup, radiance, m.data_range, valid);
     if (sw_prior) {  // the spectral Wiener (LMMSE) cube through the PSFs the system believes it has
-      const torch::Tensor sw = model::spectral_wiener_cube(img.image.cpu(), band_psf, sensor.omega.cpu(), *sw_prior)[0];
+      const torch::Tensor y = img.image.cpu();
+      const model::SpectralOtf otf = model::spectral_otf(band_psf, y.size(2), y.size(3));  // both cubes' OTFs
+      const torch::Tensor sw = model::apply_spectral_wiener(model::spectral_wiener_filter(otf, sensor.omega.cpu(), *sw_prior), y)[0];
       m.baseline_spectral_wiener_hs_psnr_db = psnr_db(sw, radiance, m.data_range, valid);
       m.baseline_spectral_wiener_hs_ssim = ssim(sw, radiance, m.data_range, valid);
       // The same LMMSE cube with each pixel's rendering layer known: what the
       // linear base would gain from the depth (model/layered_spectral_wiener.h).
-      const torch::Tensor cubes = model::layered_spectral_wiener_cubes(
-          img.image.cpu(), model::spectral_otf(band_psf, img.image.size(2), img.image.size(3)), sensor.omega.cpu(),
-          *sw_prior);
+      const torch::Tensor cubes = model::layered_spectral_wiener_cubes(y, otf, sensor.omega.cpu(), *sw_prior);
       const torch::Tensor layer = optics::nearest_layer(sc.depth_m.unsqueeze(0), psf.spec().depths_m);  // [1, 1, H, W]
       const torch::Tensor known = torch::zeros({1, cubes.size(1), layer.size(2), layer.size(3)}).scatter_(1, layer, 1.0);
       m.depth_known_spectral_wiener_hs_psnr_db =
