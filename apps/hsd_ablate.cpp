@@ -264,5 +264,6 @@ int run(const AppArgs& args) {
 
 int main(int argc, char** argv) {
   AppSpec spec{"hsd_ablate", kUsage, {"--seeds"}, {}, true, true};
+  spec.heap_for_large_blocks = true;  // common/app.h, keep_freed_memory
   return run_app(spec, argc, argv, run);
 }

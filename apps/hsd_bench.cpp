@@ -53,7 +53,10 @@ int run(const AppArgs& args) {
   if (name == "psf") rc = bench::bench_psf(cfg, args, out);
   else if (name == "sim") rc = bench::bench_sim(cfg, args, out);
   else if (name == "data") rc = bench::bench_data(cfg, args, out);
-  else if (name == "train") rc = bench::bench_train(cfg, args, out);
+  else if (name == "train") {
+    keep_freed_memory(1024, true);  // as hsd_train runs (common/app.h)
+    rc = bench::bench_train(cfg, args, out);
+  }
   else if (name == "dist") rc = bench::bench_dist(cfg, args, out);
   else if (name == "reconstruct") rc = bench::bench_reconstruct(cfg, args, out);
   else if (name == "accuracy") rc = bench::bench_accuracy(cfg, args, out);

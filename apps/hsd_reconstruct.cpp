@@ -64,9 +64,8 @@ int run(const AppArgs& args) {
   const int64_t context = args.integer("--context", precision == "bfloat16" ? overlap : 2 * overlap);
   if (context < overlap || context % 32) input_error("--context", "must be a multiple of 32 and at least --overlap");
   // Large frames: give freed memory back above 64 MiB instead of keeping up to
-  // 1 GiB for reuse (the training apps' setting), and map a tile's large
-  // blocks afresh rather than keep them in the heap, so the peak stays bounded.
-  keep_freed_memory(64, false);
+  // 1 GiB for reuse (every app's setting), so the peak stays bounded.
+  keep_freed_memory(64);
   const std::string& o = args.out_dir;
   check_output_paths({o + "/hs.exr", o + "/depth.exr", o + "/depth.png", o + "/hs_srgb.png"});
   torch::jit::Module m = model::load_reconstructor(model_path);

@@ -186,7 +186,7 @@ int run_body(const AppSpec& spec, int argc, char** argv, const std::function<int
 
 int run_app(const AppSpec& spec, int argc, char** argv, const std::function<int(const AppArgs&)>& body) {
   use_passive_openmp(argv);
-  keep_freed_memory();
+  keep_freed_memory(1024, spec.heap_for_large_blocks);
   const int rc = run_body(spec, argc, argv, body);
   // The body's objects are gone and its files closed (atomic_file.h: renamed
   // into place when complete). What is left at exit is the libraries' static

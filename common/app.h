@@ -35,6 +35,7 @@ struct AppSpec {
   bool needs_config = true;
   bool needs_out = true;
   int max_positional = 0;                     // arguments without a flag (hsd_bench NAME); more are refused
+  bool heap_for_large_blocks = false;         // keep_freed_memory's large_blocks_too (the training apps)
 };
 
 // Parses argv per the contract; InputError (exit 2) for unknown flags, missing
@@ -55,13 +56,14 @@ void use_passive_openmp(char** argv);
 // page faults (~180 MiB zeroed by the kernel) per PSF + sensor step, 20% of its
 // time. This keeps blocks up to 32 MiB in the heap and trims it only above
 // trim_threshold_mib (1 GiB) of free space; peak memory is unchanged. With
-// large_blocks_too, blocks above 32 MiB come from the heap as well (glibc
-// never mmaps one, M_MMAP_MAX = 0): the study config's spectral Wiener
-// filter and OTFs (25 bands x 7 layers on a 240-px grid, 46-81 MiB each) were
-// page-faulted in afresh every step, which on a paravirtualised guest took
-// half its step (docs/benchmarks.md, "Large blocks from the heap"); the heap
-// then holds ~250 MiB more at its peak. No-op off glibc.
-void keep_freed_memory(int64_t trim_threshold_mib = 1024, bool large_blocks_too = true);
+// large_blocks_too (the training apps: AppSpec::heap_for_large_blocks, and
+// hsd_bench train), blocks above 32 MiB come from the main thread's heap as
+// well (M_MMAP_MAX = 0): the study config's OTFs and spectral Wiener
+// temporaries (25 bands x 7 layers on a 240-px grid, 44-78 MiB each) were
+// page-faulted in afresh every step, which on a paravirtualised guest took a
+// third of its step (docs/benchmarks.md, "Large blocks from the heap"); the
+// heap then holds ~250 MiB more at its peak. No-op off glibc.
+void keep_freed_memory(int64_t trim_threshold_mib = 1024, bool large_blocks_too = false);
 // Returns the heap's free memory to the kernel now (malloc_trim). No-op off glibc.
 void release_freed_memory();
 
