@@ -1,6 +1,7 @@
 #include "model/layered_spectral_wiener.h"
 
 #include <algorithm>
+#include <cmath>
 #include <string>
 
 #include <torch/torch.h>
@@ -9,20 +10,42 @@
 
 namespace hsd::model {
 
-torch::Tensor layered_spectral_wiener_cubes(const torch::Tensor& image, const SpectralOtf& otf,
-                                            const torch::Tensor& omega, const SpectralPrior& prior) {
+torch::Tensor layered_spectral_wiener_cube(const torch::Tensor& image, const SpectralOtf& otf, const torch::Tensor& omega,
+                                           const SpectralPrior& prior, const torch::Tensor& weights) {
   if (!otf.Kf.defined() || otf.Kf.dim() != 3)
-    throw InputError("layered_spectral_wiener_cubes: the OTFs must keep every layer's Kf [L, K, F]");
-  torch::NoGradGuard no_grad;
+    throw InputError("layered_spectral_wiener_cube: the OTFs must keep every layer's Kf [L, K, F]");
   const int64_t K = otf.Kf.size(1);
-  std::vector<torch::Tensor> cubes;
+  if (image.dim() != 4 || weights.dim() != 4 || weights.size(0) != image.size(0) || weights.size(1) != K ||
+      weights.size(2) != image.size(2) || weights.size(3) != image.size(3))
+    throw InputError("layered_spectral_wiener_cube: weights must be [B, " + std::to_string(K) +
+                     ", H, W] for the image " + c10::str(image.sizes()) + ", got " + c10::str(weights.sizes()));
+  torch::NoGradGuard no_grad;
+  torch::Tensor out;
   for (int64_t z = 0; z < K; ++z) {
+    const torch::Tensor w = weights.narrow(1, z, 1);
+    if (!(w != 0).any().item<bool>()) continue;  // no pixel reads this layer
     SpectralOtf one = otf;  // the layer's OTF alone: E_z[·] over one layer is that layer
     one.Kf = otf.Kf.narrow(1, z, 1);
     one.Kbar = otf.Kf.select(1, z);
-    cubes.push_back(apply_spectral_wiener(spectral_wiener_filter(one, omega, prior), image));
+    const torch::Tensor c = apply_spectral_wiener(spectral_wiener_filter(one, omega, prior), image);
+    const torch::Tensor wc = c * w.to(c.scalar_type());
+    out = out.defined() ? out + wc : wc;
   }
-  return torch::stack(cubes, 1);
+  if (!out.defined())  // every weight zero
+    out = torch::zeros({image.size(0), otf.Kf.size(0), image.size(2), image.size(3)},
+                       image.options().dtype(image.scalar_type() == torch::kFloat64 ? torch::kFloat64 : torch::kFloat32));
+  return out;
+}
+
+torch::Tensor one_hot_layer_weights(const torch::Tensor& layer_index, int64_t K) {
+  if (layer_index.dim() != 4 || layer_index.size(1) != 1 || layer_index.scalar_type() != torch::kInt64 || K < 1)
+    throw InputError("one_hot_layer_weights: the layer index must be int64 [B, 1, H, W] and K >= 1, got " +
+                     c10::str(layer_index.sizes()));
+  if (layer_index.numel() > 0 && (layer_index.min().item<int64_t>() < 0 || layer_index.max().item<int64_t>() >= K))
+    throw InputError("one_hot_layer_weights: a layer index lies outside [0, " + std::to_string(K) + ")");
+  return torch::zeros({layer_index.size(0), K, layer_index.size(2), layer_index.size(3)},
+                      layer_index.options().dtype(torch::kFloat32))
+      .scatter_(1, layer_index, 1.0);
 }
 
 torch::Tensor inverse_depth_layer_weights(const torch::Tensor& depth_m, const std::vector<double>& layer_depths_m) {
@@ -66,14 +89,6 @@ torch::Tensor inverse_depth_layer_weights(const torch::Tensor& depth_m, const st
     w[size_t(order[size_t(i)])] = h;
   }
   return torch::cat(w, 1).to(torch::kFloat32);
-}
-
-torch::Tensor blend_layer_cubes(const torch::Tensor& cubes, const torch::Tensor& weights) {
-  if (cubes.dim() != 5 || weights.dim() != 4 || cubes.size(0) != weights.size(0) || cubes.size(1) != weights.size(1) ||
-      cubes.size(3) != weights.size(2) || cubes.size(4) != weights.size(3))
-    throw InputError("blend_layer_cubes: cubes must be [B, K, L, H, W] and weights [B, K, H, W], got " +
-                     c10::str(cubes.sizes()) + " and " + c10::str(weights.sizes()));
-  return (cubes * weights.to(cubes.scalar_type()).unsqueeze(2)).sum(1);
 }
 
 }  // namespace hsd::model

@@ -193,11 +193,14 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
       m.baseline_spectral_wiener_hs_ssim = ssim(sw, radiance, m.data_range, valid);
       // The same LMMSE cube with each pixel's rendering layer known: what the
       // linear base would gain from the depth (model/layered_spectral_wiener.h).
-      const torch::Tensor cubes = model::layered_spectral_wiener_cubes(y, otf, sensor.omega.cpu(), *sw_prior);
-      const torch::Tensor layer = optics::nearest_layer(sc.depth_m.unsqueeze(0), psf.spec().depths_m);  // [1, 1, H, W]
-      const torch::Tensor known = torch::zeros({1, cubes.size(1), layer.size(2), layer.size(3)}).scatter_(1, layer, 1.0);
-      m.depth_known_spectral_wiener_hs_psnr_db =
-          psnr_db(model::blend_layer_cubes(cubes, known)[0], radiance, m.data_range, valid);
+      const int64_t K = int64_t(psf.spec().depths_m.size());
+      if (band_psf.size(1) != K)
+        throw InputError("the model's band PSFs have " + std::to_string(band_psf.size(1)) + " depth layers, optics.depths_m " +
+                         std::to_string(K));
+      const torch::Tensor known =
+          model::one_hot_layer_weights(optics::nearest_layer(sc.depth_m.unsqueeze(0), psf.spec().depths_m), K);
+      m.depth_known_spectral_wiener_hs_psnr_db = psnr_db(
+          model::layered_spectral_wiener_cube(y, otf, sensor.omega.cpu(), *sw_prior, known)[0], radiance, m.data_range, valid);
     }
     if (model_map.defined()) {  // the network's own residual base, no U-Net
       const torch::Tensor base = cfg.model.residual == ResidualBase::preinverse ? wmean : img.image.cpu();

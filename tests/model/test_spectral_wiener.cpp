@@ -420,14 +420,25 @@ TEST_CASE("layered spectral Wiener: each layer's cube is the estimator with that
     const torch::Tensor e = torch::exp(-(g.view({-1, 1}).square() + g.view({1, -1}).square()) / (2.0 * double(z) * double(z)));
     psf.select(1, z).copy_((e / e.sum()).expand({L, P, P}));
   }
+  const model::SpectralOtf otf = model::spectral_otf(psf, H, W);
   const torch::Tensor img = torch::rand({2, 3, H, W}, torch::kFloat64);
-  const torch::Tensor cubes = model::layered_spectral_wiener_cubes(img, model::spectral_otf(psf, H, W), omega, prior);
-  REQUIRE(cubes.sizes() == torch::IntArrayRef{2, K, L, H, W});
+  auto only = [&](int64_t z) {  // every pixel on layer z
+    return model::one_hot_layer_weights(torch::full({2, 1, H, W}, z, torch::kInt64), K);
+  };
   for (int64_t z = 0; z < K; ++z) {
     INFO("layer " << z);
+    const torch::Tensor got = model::layered_spectral_wiener_cube(img, otf, omega, prior, only(z).to(torch::kFloat64));
     const torch::Tensor want = reference_cube(img, psf.narrow(1, z, 1), omega, prior);
-    CHECK((cubes.select(1, z) - want).abs().max().item<double>() < 1e-9 * want.abs().max().item<double>());
+    REQUIRE(got.sizes() == want.sizes());
+    CHECK((got - want).abs().max().item<double>() < 1e-9 * want.abs().max().item<double>());
   }
+  // Weights split between layers give the weighted sum of their cubes.
+  torch::Tensor split = torch::zeros({2, K, H, W}, torch::kFloat64);
+  split.narrow(1, 0, 1).fill_(0.25), split.narrow(1, 2, 1).fill_(0.75);
+  const torch::Tensor mixed = model::layered_spectral_wiener_cube(img, otf, omega, prior, split);
+  const torch::Tensor by_hand = 0.25 * reference_cube(img, psf.narrow(1, 0, 1), omega, prior) +
+                                0.75 * reference_cube(img, psf.narrow(1, 2, 1), omega, prior);
+  CHECK((mixed - by_hand).abs().max().item<double>() < 1e-9 * by_hand.abs().max().item<double>());
   // A scene drawn from the prior, imaged through layer 2 alone: its own layer's
   // cube is closer to it than the mixture over the three layers.
   const torch::Tensor white = torch::randn({1, L, H, W}, torch::kFloat64);
@@ -438,7 +449,8 @@ TEST_CASE("layered spectral Wiener: each layer's cube is the estimator with that
   const torch::Tensor xp = F::pad(x, F::PadFuncOptions({P / 2, P / 2, P / 2, P / 2}).mode(torch::kReplicate));
   const torch::Tensor blurred = F::conv2d(xp, psf.select(1, 2).unsqueeze(1).flip({2, 3}), F::Conv2dFuncOptions().groups(L));
   const torch::Tensor y = torch::einsum("cl,blhw->bchw", {omega, blurred});
-  const torch::Tensor known = model::layered_spectral_wiener_cubes(y, model::spectral_otf(psf, H, W), omega, prior).select(1, 2);
+  const torch::Tensor on2 = model::one_hot_layer_weights(torch::full({1, 1, H, W}, 2, torch::kInt64), K);
+  const torch::Tensor known = model::layered_spectral_wiener_cube(y, otf, omega, prior, on2);
   const torch::Tensor mixture = model::spectral_wiener_cube(y, psf, omega, prior);
   // (inside a margin of the blur's reach: the filter's replicated borders are not the scene's)
   auto err = [&](const torch::Tensor& c) {
@@ -447,10 +459,14 @@ TEST_CASE("layered spectral Wiener: each layer's cube is the estimator with that
   const double e_known = err(known), e_mix = err(mixture);
   INFO("squared error, layer known " << e_known << ", mixture " << e_mix);
   CHECK(e_known < 0.8 * e_mix);
-  CHECK_THROWS_AS(model::layered_spectral_wiener_cubes(img, model::SpectralOtf(), omega, prior), InputError);
+  // Bad input names the problem.
+  CHECK_THROWS_AS(model::layered_spectral_wiener_cube(img, model::SpectralOtf(), omega, prior, only(0)), InputError);
+  CHECK_THROWS_AS(model::layered_spectral_wiener_cube(img, otf, omega, prior, only(0).narrow(1, 0, 2)), InputError);
+  CHECK_THROWS_AS(model::one_hot_layer_weights(torch::full({1, 1, 2, 2}, K, torch::kInt64), K), InputError);
+  CHECK_THROWS_AS(model::one_hot_layer_weights(torch::full({1, 1, 2, 2}, -1, torch::kInt64), K), InputError);
 }
 
-TEST_CASE("layered spectral Wiener: hat weights in inverse depth pick a layer at its depth, split between neighbours, and blend",
+TEST_CASE("layered spectral Wiener: hat weights in inverse depth pick a layer at its depth and split between neighbours",
           "[spectral_wiener]") {
   const std::vector<double> layers{0.5, 2.0, 1.0};  // inverse 2, 0.5, 1: given out of order
   // 0.5 m, 2 m, 1 m, 1/1.5 m (halfway between 1 and 2 m^-1), 1.6 m (a quarter of the way from 0.5 to 1 m^-1), 0.3 m and 5 m (beyond the ends)
@@ -461,17 +477,7 @@ TEST_CASE("layered spectral Wiener: hat weights in inverse depth pick a layer at
                                             {0.0, 0.0, 1.0, 0.5, 0.25, 0.0, 0.0}}, torch::kFloat64);
   CHECK((w - want).abs().max().item<double>() < 1e-6);
   CHECK((w.sum(0) - 1.0).abs().max().item<double>() < 1e-6);
-  // the blend of one-hot weights is the layer's cube
-  const torch::Tensor cubes = torch::rand({1, 3, 4, 1, 7});
-  const torch::Tensor blend = model::blend_layer_cubes(cubes, w.to(torch::kFloat32).view({1, 3, 1, 7}));
-  using torch::indexing::Slice;
-  auto got = [&](int64_t px) { return blend.index({0, Slice(), 0, px}); };                // [4]
-  auto layer = [&](int64_t z, int64_t px) { return cubes.index({0, z, Slice(), 0, px}); };  // [4]
-  CHECK(torch::allclose(got(2), layer(2, 2)));
-  CHECK(torch::allclose(got(3), 0.5 * (layer(0, 3) + layer(2, 3))));
-  CHECK(torch::allclose(got(4), 0.75 * layer(1, 4) + 0.25 * layer(2, 4)));
   CHECK_THROWS_AS(model::inverse_depth_layer_weights(d, {1.0, 1.0}), InputError);
   CHECK_THROWS_AS(model::inverse_depth_layer_weights(d, {}), InputError);
   CHECK_THROWS_AS(model::inverse_depth_layer_weights(torch::zeros({1, 1, 2, 2}), layers), InputError);
-  CHECK_THROWS_AS(model::blend_layer_cubes(cubes, torch::ones({1, 2, 1, 7})), InputError);
 }
