@@ -139,7 +139,12 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
                      std::to_string(up_w.size(1)) + "] (optics.wavelengths_nm x RGB), got " + c10::str(model_map.sizes()));
   const torch::Tensor imaging_psf = optics::imaging_psf_stack(psf, h, fixed_psf).cpu();
   const torch::Tensor band_psf = model_psf.defined() ? model_psf.detach().cpu() : imaging_psf;
-  const torch::Tensor rgb_psf = model::camera_rgb_psfs(band_psf, sensor.omega.cpu());
+  const torch::Tensor omega = sensor.omega.cpu();
+  const torch::Tensor rgb_psf = model::camera_rgb_psfs(band_psf, omega);
+  const int64_t K = int64_t(psf.spec().depths_m.size());
+  if (sw_prior && band_psf.size(1) != K)  // the depth-known reference picks layers by optics.depths_m
+    throw InputError("the model's band PSFs have " + std::to_string(band_psf.size(1)) + " depth layers, optics.depths_m " +
+                     std::to_string(K));
   int cc_count = 0;
   double cc_sum = 0.0;
   log::Progress progress("evaluate", long(scenes.size()));
@@ -188,19 +193,15 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     if (sw_prior) {  // the spectral Wiener (LMMSE) cube through the PSFs the system believes it has
       const torch::Tensor y = img.image.cpu();
       const model::SpectralOtf otf = model::spectral_otf(band_psf, y.size(2), y.size(3));  // both cubes' OTFs
-      const torch::Tensor sw = model::apply_spectral_wiener(model::spectral_wiener_filter(otf, sensor.omega.cpu(), *sw_prior), y)[0];
+      const torch::Tensor sw = model::apply_spectral_wiener(model::spectral_wiener_filter(otf, omega, *sw_prior), y)[0];
       m.baseline_spectral_wiener_hs_psnr_db = psnr_db(sw, radiance, m.data_range, valid);
       m.baseline_spectral_wiener_hs_ssim = ssim(sw, radiance, m.data_range, valid);
       // The same LMMSE cube with each pixel's rendering layer known: what the
       // linear base would gain from the depth (model/layered_spectral_wiener.h).
-      const int64_t K = int64_t(psf.spec().depths_m.size());
-      if (band_psf.size(1) != K)
-        throw InputError("the model's band PSFs have " + std::to_string(band_psf.size(1)) + " depth layers, optics.depths_m " +
-                         std::to_string(K));
       const torch::Tensor known =
           model::one_hot_layer_weights(optics::nearest_layer(sc.depth_m.unsqueeze(0), psf.spec().depths_m), K);
       m.depth_known_spectral_wiener_hs_psnr_db = psnr_db(
-          model::layered_spectral_wiener_cube(y, otf, sensor.omega.cpu(), *sw_prior, known)[0], radiance, m.data_range, valid);
+          model::layered_spectral_wiener_cube(y, otf, omega, *sw_prior, known)[0], radiance, m.data_range, valid);
     }
     if (model_map.defined()) {  // the network's own residual base, no U-Net
       const torch::Tensor base = cfg.model.residual == ResidualBase::preinverse ? wmean : img.image.cpu();
@@ -228,7 +229,7 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     const DepthErrors dd = depth_errors(dfd, sc.depth_m, valid);
     m.baseline_defocus_depth_rmse_m = dd.rmse_m, m.baseline_defocus_depth_mae_m = dd.mae_m;
     if (sw_prior) {  // the same reader with the spectral prior and band PSFs of the spectral Wiener baseline
-      const torch::Tensor c = model::spectral_defocus_cost_volume(img.image.cpu(), band_psf, sensor.omega.cpu(), *sw_prior,
+      const torch::Tensor c = model::spectral_defocus_cost_volume(img.image.cpu(), band_psf, omega, *sw_prior,
                                                                   kSpectralDefocusWindowPx);
       const DepthErrors ds = depth_errors(model::defocus_layer_depth(c, psf.spec().depths_m), sc.depth_m, valid);
       m.baseline_spectral_defocus_depth_rmse_m = ds.rmse_m, m.baseline_spectral_defocus_depth_mae_m = ds.mae_m;
