@@ -385,6 +385,11 @@ struct GeneratorConfig {
   std::vector<std::pair<SceneLayout, double>> layouts{{SceneLayout::dead_leaves, 0.5}, {SceneLayout::tabletop, 0.5}};
   std::string texture_dir;                       // photographs for textures; "" = the shipped data/textures
   double texture_scale_min = 0.25, texture_scale_max = 1.25;  // scene pixels per texture pixel (log-uniform)
+  // "area": each scene pixel averages the photo over its footprint, as a sensor
+  // pixel integrates (no aliasing where a pixel spans several photo pixels);
+  // "point": one bilinear sample per pixel, which aliases (the default while
+  // the documented results are those of point-sampled scenes; docs/data.md).
+  std::string texture_filter = "point";
   int64_t dead_leaves_max_shapes = 4000;         // upper bound on the shapes of one dead-leaves scene
   // Dead-leaves radii follow p(r) ∝ r⁻³ on [min, max] · min(H, W) (min >= 1.5 px).
   double dead_leaves_min_radius = 0.02;

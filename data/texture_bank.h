@@ -1,7 +1,8 @@
 // Natural photographs as surface textures for the realistic generator: every
 // image file (.jpg, .jpeg, .png, .tif, .tiff, .bmp) of a folder, sorted by name,
 // decoded from sRGB to linear RGB in [0, 1], the longest side reduced to at most
-// `max_side_px` (area averaging). The default folder, data/textures/, ships with
+// `max_side_px` (area averaging), with a pyramid of area-averaged halvings for
+// reads averaged over a scene pixel's footprint. The default folder, data/textures/, ships with
 // hsd (sources and licences in its README); data.generator.texture_dir points
 // the generator at any other folder (a user's photos, a texture dataset).
 #pragma once
@@ -31,14 +32,24 @@ class TextureBank {
   // True when image i has no colour (every pixel's channels within 1/255).
   bool is_grey(int64_t i) const { return grey_[size_t(i)]; }
 
-  // Texture i at texture-pixel coordinates x, y [H, W] (sample_mirrored). Returns float64 [3, H, W].
+  // Texture i at texture-pixel coordinates x, y [H, W] (sample_mirrored), point
+  // sampled: a scene pixel spanning several texture pixels aliases. Returns float64 [3, H, W].
   torch::Tensor sample(int64_t i, const torch::Tensor& x, const torch::Tensor& y) const {
     return sample_mirrored(images_[size_t(i)], x, y);
   }
+  // The same, averaged over each scene pixel's footprint, as a sensor pixel
+  // integrates the radiance over its area: `footprint` [H, W] is the texture
+  // pixels one scene pixel spans (>= 0; <= 1 gives sample() exactly). Trilinear
+  // in a pyramid of area-averaged halvings (level k = 2^k texture pixels per
+  // texel; level log2(footprint), interpolated between the two nearest levels;
+  // the coarsest level beyond its reach). Returns float64 [3, H, W].
+  torch::Tensor sample_area(int64_t i, const torch::Tensor& x, const torch::Tensor& y, const torch::Tensor& footprint) const;
+  int64_t levels(int64_t i) const { return int64_t(pyramids_[size_t(i)].size()); }  // level 0 = image(i)
 
  private:
   std::vector<std::string> names_;
   std::vector<torch::Tensor> images_;
+  std::vector<std::vector<torch::Tensor>> pyramids_;  // per image: level 0 (the image), 1, 2, ... halvings, down to 8 px
   std::vector<double> y95_;
   std::vector<bool> grey_;
 };

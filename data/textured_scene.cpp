@@ -74,9 +74,34 @@ std::pair<torch::Tensor, torch::Tensor> texel_coords(const torch::Tensor& a, con
   return {c * a - s * b + ox, s * a + c * b + oy};
 }
 
-// The reflectance cube [L, H, W] float64 from the surface map (formula in the header).
+// The texture pixels each scene pixel spans [H, W]: the longer of the texture
+// coordinates' steps to the next pixel in x and in y, each a difference to a
+// neighbour on the same surface (forward, else backward; 0 without one).
+torch::Tensor texel_footprint(const SurfaceMap& m) {
+  using torch::indexing::Slice;
+  auto step = [&](int dim) {
+    const int64_t n = m.id.size(dim);
+    torch::Tensor g2 = torch::zeros_like(m.tx);
+    if (n < 2) return g2;
+    const torch::Tensor a = m.id.narrow(dim, 0, n - 1), b = m.id.narrow(dim, 1, n - 1);
+    const torch::Tensor dx = m.tx.narrow(dim, 1, n - 1) - m.tx.narrow(dim, 0, n - 1);
+    const torch::Tensor dy = m.ty.narrow(dim, 1, n - 1) - m.ty.narrow(dim, 0, n - 1);
+    const torch::Tensor d2 = torch::where((a == b) & (a >= 0), dx * dx + dy * dy, torch::zeros_like(dx));
+    const torch::Tensor ok = ((a == b) & (a >= 0));
+    // Backward differences everywhere but the first row/column, then forward ones where they exist.
+    g2.narrow(dim, 1, n - 1).copy_(d2);
+    torch::Tensor fwd = g2.narrow(dim, 0, n - 1);
+    fwd.copy_(torch::where(ok, d2, fwd));
+    return g2;
+  };
+  return torch::maximum(step(1), step(0)).sqrt();
+}
+
+// The reflectance cube [L, H, W] float64 from the surface map (formula in the
+// header); area_filter: each pixel averages the photo over its footprint
+// (TextureBank::sample_area), else the photo is point sampled.
 torch::Tensor paint(const SurfaceMap& m, const std::vector<SurfaceLook>& looks, const TextureBank& tex,
-                    const torch::Tensor& noise, const torch::Tensor& materials, int64_t L) {
+                    const torch::Tensor& noise, const torch::Tensor& materials, int64_t L, bool area_filter) {
   const int64_t H = m.id.size(0), W = m.id.size(1), n = int64_t(looks.size());
   const torch::Tensor id = m.id.reshape(-1);
   const torch::Tensor valid = id >= 0;
@@ -92,14 +117,19 @@ torch::Tensor paint(const SurfaceMap& m, const std::vector<SurfaceLook>& looks, 
   // The photos' linear RGB and normalised luminance, one photo at a time over its pixels.
   torch::Tensor rgb = torch::zeros({3, H * W}, f64), ynorm = torch::zeros({H * W}, f64);
   const torch::Tensor tx = m.tx.reshape(-1), ty = m.ty.reshape(-1);
+  const torch::Tensor foot = area_filter ? texel_footprint(m).reshape(-1) : torch::Tensor();
   for (int64_t t = 0; t < tex.size(); ++t) {
     const torch::Tensor idx = (valid & (pix_tex == t)).nonzero().squeeze(1);
     if (idx.numel() == 0) continue;
     const torch::Tensor x = tx.index_select(0, idx).view({1, -1}), y = ty.index_select(0, idx).view({1, -1});
-    const torch::Tensor c = tex.sample(t, x, y).view({3, -1});
+    const torch::Tensor f = area_filter ? foot.index_select(0, idx).view({1, -1}) : torch::Tensor();
+    auto sample = [&](const torch::Tensor& xs, const torch::Tensor& ys) {
+      return area_filter ? tex.sample_area(t, xs, ys, f) : tex.sample(t, xs, ys);
+    };
+    const torch::Tensor c = sample(x, y).view({3, -1});
     if (tex.is_grey(t)) {  // three independent weights: the photo at two more places for the second and third
-      const torch::Tensor c2 = tex.sample(t, x + 173.3, y + 91.7).view({3, -1});
-      const torch::Tensor c3 = tex.sample(t, y - 121.1, x + 237.9).view({3, -1});
+      const torch::Tensor c2 = sample(x + 173.3, y + 91.7).view({3, -1});
+      const torch::Tensor c3 = sample(y - 121.1, x + 237.9).view({3, -1});
       rgb.index_copy_(1, idx, torch::stack({c[0], c2[0], c3[0]}));
     } else {
       rgb.index_copy_(1, idx, c);
@@ -213,7 +243,7 @@ GeneratedScene generate_textured_tabletop_scene(const GeneratorConfig& g, const 
   }
   const torch::Tensor noise = fractal_field(H, W, uni(1.0, 2.0), rng);
   const torch::Tensor materials = fractal_field(H, W, uni(1.2, 2.0), rng);
-  const torch::Tensor refl = paint(m, looks, src.textures, noise, materials, L);
+  const torch::Tensor refl = paint(m, looks, src.textures, noise, materials, L, g.texture_filter == "area");
   std::string objs;
   for (const auto& [k, cnt] : counts) objs += (objs.empty() ? "" : ", ") + std::to_string(cnt) + " " + k + (cnt > 1 ? "s" : "");
   return finish(refl, depth, hit, wavelengths_m,
@@ -353,7 +383,7 @@ GeneratedScene generate_dead_leaves_scene(const GeneratorConfig& g, const SceneS
   m.shade = (0.85 + lx * (X - 0.5 * double(W)) + ly * (Y - 0.5 * double(H))).clamp(0.4, 1.0);
   const torch::Tensor noise = fractal_field(H, W, uni(1.0, 2.0), rng);
   const torch::Tensor materials = fractal_field(H, W, uni(1.2, 2.0), rng);
-  const torch::Tensor refl = paint(m, looks, src.textures, noise, materials, L);
+  const torch::Tensor refl = paint(m, looks, src.textures, noise, materials, L, g.texture_filter == "area");
   const torch::Tensor valid = torch::ones({H, W}, torch::kBool);
   return finish(refl, 1.0 / invz, valid, wavelengths_m,
                 on_surfaces ? "dead leaves: " + std::to_string(surfaces.size() - 1) +

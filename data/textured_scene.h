@@ -16,6 +16,8 @@
 // independent fields make two pixels of the same RGB carry different spectra,
 // as in real scenes (metamers), so a network must learn more than a 3-to-L
 // lift. R stays in [0, 1] (convex mixtures of spectra in [0, 1], factors <= 1).
+// The photo is point sampled, or with data.generator.texture_filter = "area"
+// averaged over each pixel's footprint (no aliasing; docs/data.md).
 // With the ColorChecker excluded these choices reach the realism targets on
 // configs/paper.json (docs/data.md); each was added for a measured shortfall
 // (docs/data.md).

@@ -12,6 +12,7 @@
 #include <random>
 
 #include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
 
 #include "common/config.h"
 #include "common/error.h"
@@ -227,6 +228,44 @@ TEST_CASE("texture bank: the shipped photographs load as linear RGB, and bad fol
   }
 }
 
+TEST_CASE("texture bank: area sampling averages a pixel's footprint, in place, and equals point sampling at one texel",
+          "[data][realism]") {
+  // A 256 × 256 photo: a texel-sized checkerboard (black/white) on the left half, white on the right.
+  const fs::path dir = fs::temp_directory_path() / "hsd_test_texture_area";
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  cv::Mat img(256, 256, CV_8UC3);
+  for (int y = 0; y < 256; ++y)
+    for (int x = 0; x < 256; ++x) img.at<cv::Vec3b>(y, x) = cv::Vec3b::all(x >= 128 ? 255 : ((x + y) % 2 ? 255 : 0));
+  REQUIRE(cv::imwrite((dir / "check.png").string(), img));
+  const data::TextureBank bank(dir.string());
+  REQUIRE(bank.levels(0) >= 5);  // 256, 128, 64, 32, 16 (stops before 8)
+  // Every 4th texel of a row in the checkerboard: point sampling aliases to one colour (all black here),
+  // the area average over a 4-texel footprint is the grey the pixel integrates (linear 0.5).
+  const torch::Tensor xs = torch::arange(8.0, 104.0, 4.0, f64).view({1, -1});
+  const torch::Tensor ys = torch::full_like(xs, 64.0);
+  const torch::Tensor point = bank.sample(0, xs, ys)[1];
+  CHECK(point.max().item<double>() < 1e-3);
+  const torch::Tensor area = bank.sample_area(0, xs, ys, torch::full_like(xs, 4.0))[1];
+  CHECK(area.mean().item<double>() == Approx(0.5).margin(0.01));
+  CHECK((area - 0.5).abs().max().item<double>() < 0.03);
+  // Between levels (a footprint of 3 texels) too.
+  CHECK((bank.sample_area(0, xs, ys, torch::full_like(xs, 3.0))[1] - 0.5).abs().max().item<double>() < 0.03);
+  // In place: far from the edge at x = 128 a coarse footprint keeps each side's mean; the white side is white.
+  const torch::Tensor xe = torch::tensor({100.0, 160.0}, f64).view({1, 2}), ye = torch::full_like(xe, 64.0);
+  const torch::Tensor e = bank.sample_area(0, xe, ye, torch::full_like(xe, 8.0))[0];
+  CHECK(e[0][0].item<double>() == Approx(0.5).margin(0.03));
+  CHECK(e[0][1].item<double>() == Approx(1.0).margin(1e-3));
+  // A footprint of at most one texel is point sampling, value for value, also beyond the edges (mirrored).
+  torch::manual_seed(3);
+  const torch::Tensor rx = torch::rand({4, 50}, f64) * 900.0 - 300.0, ry = torch::rand({4, 50}, f64) * 900.0 - 300.0;
+  CHECK(torch::equal(bank.sample_area(0, rx, ry, torch::rand({4, 50}, f64)), bank.sample(0, rx, ry)));
+  // Mirrored at level 0 before a coarser level is read: a place one period away reads the same at every level.
+  const torch::Tensor far = bank.sample_area(0, rx + 2.0 * 255.0, ry, torch::full_like(rx, 6.0));
+  CHECK((far - bank.sample_area(0, rx, ry, torch::full_like(rx, 6.0))).abs().max().item<double>() < 1e-9);
+  fs::remove_all(dir);
+}
+
 // The realistic layouts' sources on 8 bands, a 192 × 144 generator over 0.4-2 m, and the realism spec.
 struct LayoutBench {
   const std::vector<double> w = bands(430, 640, 30);
@@ -272,6 +311,37 @@ TEST_CASE("realistic layouts: deterministic, in range, textured, depth spread in
   // Different seeds give different scenes.
   CHECK_FALSE(torch::equal(data::generate_dead_leaves_scene(g, src, w, 1).scene.depth_m,
                            data::generate_dead_leaves_scene(g, src, w, 2).scene.depth_m));
+}
+
+TEST_CASE("realistic layouts: the area filter removes the photos' aliasing, the point filter keeps it", "[data][realism]") {
+  const LayoutBench b;
+  GeneratorConfig area = b.g, point = b.g;
+  area.texture_filter = "area";
+  CHECK(b.g.texture_filter == "point");  // the default (docs/data.md says why)
+  // The luminance's power in the finest octave (0.25-0.5 cycles per pixel) over its total (mean removed):
+  // point-sampled photos minified up to 4x fold their fine detail into it.
+  auto finest = [](const torch::Tensor& cube) {
+    const torch::Tensor y = cube.to(torch::kFloat64).mean(0);
+    const torch::Tensor p = torch::fft::fft2(y - y.mean()).abs().pow(2);
+    const int64_t H = y.size(0), W = y.size(1);
+    const torch::Tensor f = (torch::fft::fftfreq(H, 1.0, f64).view({H, 1}).pow(2) + torch::fft::fftfreq(W, 1.0, f64).view({1, W}).pow(2)).sqrt();
+    return (p * (f >= 0.25)).sum().item<double>() / p.sum().item<double>();
+  };
+  double area_sum = 0, point_sum = 0;
+  for (uint64_t seed : {1u, 2u, 3u}) {
+    const double a = finest(data::generate_dead_leaves_scene(area, b.src, b.w, seed).scene.spectral);
+    const double p = finest(data::generate_dead_leaves_scene(point, b.src, b.w, seed).scene.spectral);
+    CHECK(a < p);
+    area_sum += a, point_sum += p;
+    const double ta = finest(data::generate_textured_tabletop_scene(area, b.src, b.w, seed).scene.spectral);
+    const double tp = finest(data::generate_textured_tabletop_scene(point, b.src, b.w, seed).scene.spectral);
+    CHECK(ta < tp);
+  }
+  CHECK(area_sum < 0.95 * point_sum);
+  // The same geometry and depth either way.
+  CHECK(torch::equal(data::generate_dead_leaves_scene(area, b.src, b.w, 5).scene.depth_m,
+                     data::generate_dead_leaves_scene(point, b.src, b.w, 5).scene.depth_m));
+  CHECK_THROWS_AS(load_config(test::source_path("configs/tiny.json"), {"data.generator.texture_filter=\"box\""}), InputError);
 }
 
 TEST_CASE("dead leaves on surfaces: the leaves become markings, depth comes from larger surfaces and is as coarse as real depth maps",
