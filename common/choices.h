@@ -62,6 +62,8 @@ enum class CaptureBackground { automatic, dark, ring };
 enum class ComputeDevice { cpu, cuda };
 // data.generator.layouts: the scene layouts (data/textured_scene.h).
 enum class SceneLayout { tabletop, dead_leaves, classic_tabletop };
+// data.generator.texture_filter: a photo read once per scene pixel, or averaged over its footprint.
+enum class TextureFilter { point, area };
 // fisher.nuisance lists parameters unknown besides (1/z, λ): the source's
 // position x, y and its brightness N (optics/fisher.h).
 enum class NuisanceParam { x, y, N };
@@ -85,6 +87,9 @@ constexpr ChoiceTable<Compositing, 2> choice_names(Compositing) {
 }
 constexpr ChoiceTable<NormKind, 3> choice_names(NormKind) {
   return {{{NormKind::batch, "batch"}, {NormKind::group, "group"}, {NormKind::none, "none"}}};
+}
+constexpr ChoiceTable<TextureFilter, 2> choice_names(TextureFilter) {
+  return {{{TextureFilter::point, "point"}, {TextureFilter::area, "area"}}};
 }
 constexpr ChoiceTable<FisherBasis, 2> choice_names(FisherBasis) {
   return {{{FisherBasis::zernike, "zernike"}, {FisherBasis::freeform, "freeform"}}};

@@ -174,8 +174,7 @@ GeneratorConfig parse_generator(const JsonReader& r) {
   if (!(g.texture_scale_min > 0.0 && g.texture_scale_min <= 100.0)) r.fail("texture_scale_min", "must be in (0, 100]");
   if (!(g.texture_scale_max >= g.texture_scale_min && g.texture_scale_max <= 100.0))
     r.fail("texture_scale_max", "must be in [texture_scale_min, 100]");
-  g.texture_filter = r.get_string("texture_filter", g.texture_filter);
-  if (g.texture_filter != "area" && g.texture_filter != "point") r.fail("texture_filter", "must be \"area\" or \"point\"");
+  g.texture_filter = read_choice(r, "texture_filter", g.texture_filter);
   g.dead_leaves_max_shapes = r.get_int("dead_leaves_max_shapes", g.dead_leaves_max_shapes);
   if (g.dead_leaves_max_shapes < 1 || g.dead_leaves_max_shapes > 1000000) r.fail("dead_leaves_max_shapes", "must be in [1, 1e6]");
   g.dead_leaves_min_radius = r.get_number("dead_leaves_min_radius", g.dead_leaves_min_radius);

@@ -389,7 +389,7 @@ struct GeneratorConfig {
   // pixel integrates (no aliasing where a pixel spans several photo pixels);
   // "point": one bilinear sample per pixel, which aliases (the default while
   // the documented results are those of point-sampled scenes; docs/data.md).
-  std::string texture_filter = "point";
+  TextureFilter texture_filter = TextureFilter::point;
   int64_t dead_leaves_max_shapes = 4000;         // upper bound on the shapes of one dead-leaves scene
   // Dead-leaves radii follow p(r) ∝ r⁻³ on [min, max] · min(H, W) (min >= 1.5 px).
   double dead_leaves_min_radius = 0.02;

@@ -21,13 +21,13 @@ namespace {
 std::vector<torch::Tensor> area_pyramid(const torch::Tensor& image) {
   std::vector<torch::Tensor> levels{image};
   while (std::min(levels.back().size(1), levels.back().size(2)) >= 16) {
-    const torch::Tensor& prev = levels.back();
+    const torch::Tensor prev = levels.back();  // a handle: push_back below may move the vector
     const int64_t h = prev.size(1), w = prev.size(2);
     const torch::Tensor hwc_t = prev.permute({1, 2, 0}).contiguous();  // alive while cv reads it
     const cv::Mat hwc(int(h), int(w), CV_32FC3, hwc_t.data_ptr<float>());
     cv::Mat half;
     cv::resize(hwc, half, cv::Size(int((w + 1) / 2), int((h + 1) / 2)), 0, 0, cv::INTER_AREA);
-    levels.push_back(torch::from_blob(half.data, {half.rows, half.cols, 3}, torch::kFloat32).permute({2, 0, 1}).contiguous().clone());
+    levels.push_back(torch::from_blob(half.data, {half.rows, half.cols, 3}, torch::kFloat32).permute({2, 0, 1}).contiguous());
   }
   return levels;
 }
@@ -98,12 +98,15 @@ torch::Tensor TextureBank::sample_area(int64_t i, const torch::Tensor& x, const 
   const int64_t top = int64_t(pyr.size()) - 1;
   const int64_t h0 = pyr[0].size(1), w0 = pyr[0].size(2);
   // The pyramid level in [0, top]: log2 of the footprint, 0 where it is at most one texture pixel.
-  const torch::Tensor level = torch::log2(footprint.to(torch::kFloat64).clamp_min(1.0)).clamp_max(double(top));
+  // A footprint that is not finite (no generator makes one) reads level 0 rather than nothing.
+  const torch::Tensor fp = torch::nan_to_num(footprint.to(torch::kFloat64), 1.0, 1.0, 1.0);
+  const torch::Tensor level = torch::log2(fp.clamp_min(1.0)).clamp_max(double(top));
   const torch::Tensor lo = level.floor().to(torch::kLong).clamp_max(std::max<int64_t>(top - 1, 0));
   const torch::Tensor frac = (level - lo.to(torch::kFloat64)).clamp(0.0, 1.0);
   torch::Tensor out = torch::zeros({3, x.size(0), x.size(1)}, torch::kFloat64);
   // Level k's texel j covers level 0's [j, j + 1) · (n0 / nk) - 1/2: centre (j + 1/2) n0 / nk - 1/2.
   auto at_level = [&](int64_t k, const torch::Tensor& xs, const torch::Tensor& ys) {
+    if (k == 0) return sample_mirrored(pyr[0], xs, ys);  // exactly sample() (already mirrored)
     const double sx = double(pyr[size_t(k)].size(2)) / double(w0), sy = double(pyr[size_t(k)].size(1)) / double(h0);
     return sample_mirrored(pyr[size_t(k)], (xs + 0.5) * sx - 0.5, (ys + 0.5) * sy - 0.5);  // [3, 1, n]
   };

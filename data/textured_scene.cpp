@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <map>
 #include <random>
 
@@ -75,24 +76,24 @@ std::pair<torch::Tensor, torch::Tensor> texel_coords(const torch::Tensor& a, con
 }
 
 // The texture pixels each scene pixel spans [H, W]: the longer of the texture
-// coordinates' steps to the next pixel in x and in y, each a difference to a
-// neighbour on the same surface (forward, else backward; 0 without one).
+// coordinates' steps to the next pixel in x and in y. Each step is the shorter
+// of the differences to the two neighbours on the same surface (one where the
+// other is on another surface; 0 without either), so a seam inside a surface,
+// where the projection switches axes and the coordinates jump, counts for no pixel.
 torch::Tensor texel_footprint(const SurfaceMap& m) {
-  using torch::indexing::Slice;
+  const double inf = std::numeric_limits<double>::infinity();
   auto step = [&](int dim) {
     const int64_t n = m.id.size(dim);
-    torch::Tensor g2 = torch::zeros_like(m.tx);
-    if (n < 2) return g2;
+    if (n < 2) return torch::zeros_like(m.tx);
     const torch::Tensor a = m.id.narrow(dim, 0, n - 1), b = m.id.narrow(dim, 1, n - 1);
     const torch::Tensor dx = m.tx.narrow(dim, 1, n - 1) - m.tx.narrow(dim, 0, n - 1);
     const torch::Tensor dy = m.ty.narrow(dim, 1, n - 1) - m.ty.narrow(dim, 0, n - 1);
-    const torch::Tensor d2 = torch::where((a == b) & (a >= 0), dx * dx + dy * dy, torch::zeros_like(dx));
-    const torch::Tensor ok = ((a == b) & (a >= 0));
-    // Backward differences everywhere but the first row/column, then forward ones where they exist.
-    g2.narrow(dim, 1, n - 1).copy_(d2);
-    torch::Tensor fwd = g2.narrow(dim, 0, n - 1);
-    fwd.copy_(torch::where(ok, d2, fwd));
-    return g2;
+    // d2[i]: squared step between pixels i and i + 1 along dim, +inf across surfaces.
+    const torch::Tensor d2 = torch::where((a == b) & (a >= 0), dx * dx + dy * dy, torch::full_like(dx, inf));
+    const torch::Tensor pad = torch::full_like(m.tx.narrow(dim, 0, 1), inf);
+    const torch::Tensor fwd = torch::cat({d2, pad}, dim), bwd = torch::cat({pad, d2}, dim);
+    const torch::Tensor g2 = torch::minimum(fwd, bwd);
+    return torch::where(torch::isfinite(g2), g2, torch::zeros_like(g2));
   };
   return torch::maximum(step(1), step(0)).sqrt();
 }
@@ -243,7 +244,7 @@ GeneratedScene generate_textured_tabletop_scene(const GeneratorConfig& g, const 
   }
   const torch::Tensor noise = fractal_field(H, W, uni(1.0, 2.0), rng);
   const torch::Tensor materials = fractal_field(H, W, uni(1.2, 2.0), rng);
-  const torch::Tensor refl = paint(m, looks, src.textures, noise, materials, L, g.texture_filter == "area");
+  const torch::Tensor refl = paint(m, looks, src.textures, noise, materials, L, g.texture_filter == TextureFilter::area);
   std::string objs;
   for (const auto& [k, cnt] : counts) objs += (objs.empty() ? "" : ", ") + std::to_string(cnt) + " " + k + (cnt > 1 ? "s" : "");
   return finish(refl, depth, hit, wavelengths_m,
@@ -383,7 +384,7 @@ GeneratedScene generate_dead_leaves_scene(const GeneratorConfig& g, const SceneS
   m.shade = (0.85 + lx * (X - 0.5 * double(W)) + ly * (Y - 0.5 * double(H))).clamp(0.4, 1.0);
   const torch::Tensor noise = fractal_field(H, W, uni(1.0, 2.0), rng);
   const torch::Tensor materials = fractal_field(H, W, uni(1.2, 2.0), rng);
-  const torch::Tensor refl = paint(m, looks, src.textures, noise, materials, L, g.texture_filter == "area");
+  const torch::Tensor refl = paint(m, looks, src.textures, noise, materials, L, g.texture_filter == TextureFilter::area);
   const torch::Tensor valid = torch::ones({H, W}, torch::kBool);
   return finish(refl, 1.0 / invz, valid, wavelengths_m,
                 on_surfaces ? "dead leaves: " + std::to_string(surfaces.size() - 1) +

@@ -239,7 +239,7 @@ TEST_CASE("texture bank: area sampling averages a pixel's footprint, in place, a
     for (int x = 0; x < 256; ++x) img.at<cv::Vec3b>(y, x) = cv::Vec3b::all(x >= 128 ? 255 : ((x + y) % 2 ? 255 : 0));
   REQUIRE(cv::imwrite((dir / "check.png").string(), img));
   const data::TextureBank bank(dir.string());
-  REQUIRE(bank.levels(0) >= 5);  // 256, 128, 64, 32, 16 (stops before 8)
+  REQUIRE(bank.levels(0) == 6);  // 256, 128, 64, 32, 16, 8
   // Every 4th texel of a row in the checkerboard: point sampling aliases to one colour (all black here),
   // the area average over a 4-texel footprint is the grey the pixel integrates (linear 0.5).
   const torch::Tensor xs = torch::arange(8.0, 104.0, 4.0, f64).view({1, -1});
@@ -263,6 +263,24 @@ TEST_CASE("texture bank: area sampling averages a pixel's footprint, in place, a
   // Mirrored at level 0 before a coarser level is read: a place one period away reads the same at every level.
   const torch::Tensor far = bank.sample_area(0, rx + 2.0 * 255.0, ry, torch::full_like(rx, 6.0));
   CHECK((far - bank.sample_area(0, rx, ry, torch::full_like(rx, 6.0))).abs().max().item<double>() < 1e-9);
+  // In place at every level: a photo linear in x (16-bit sRGB of a linear ramp) averages to its centre's value
+  // away from the edges, so a level read a texel off, or a wrong blend, shows as an error of 1/255 or more.
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  cv::Mat ramp(256, 256, CV_16UC3);
+  for (int y = 0; y < 256; ++y)
+    for (int x = 0; x < 256; ++x) {
+      const double v = double(x) / 255.0, e = v <= 0.0031308 ? 12.92 * v : 1.055 * std::pow(v, 1.0 / 2.4) - 0.055;
+      ramp.at<cv::Vec3w>(y, x) = cv::Vec3w::all(ushort(std::lround(e * 65535.0)));
+    }
+  REQUIRE(cv::imwrite((dir / "ramp.png").string(), ramp));
+  const data::TextureBank rb(dir.string());
+  const torch::Tensor qx = torch::arange(60.0, 196.0, 7.3, f64).view({1, -1}), qy = torch::full_like(qx, 128.0);
+  for (double f : {1.0, 2.0, 3.0, 4.0, 6.0, 11.0}) {
+    INFO("footprint " << f);
+    const torch::Tensor got = rb.sample_area(0, qx, qy, torch::full_like(qx, f))[0];
+    CHECK((got - qx / 255.0).abs().max().item<double>() < 2e-3);
+  }
   fs::remove_all(dir);
 }
 
@@ -316,8 +334,8 @@ TEST_CASE("realistic layouts: deterministic, in range, textured, depth spread in
 TEST_CASE("realistic layouts: the area filter removes the photos' aliasing, the point filter keeps it", "[data][realism]") {
   const LayoutBench b;
   GeneratorConfig area = b.g, point = b.g;
-  area.texture_filter = "area";
-  CHECK(b.g.texture_filter == "point");  // the default (docs/data.md says why)
+  area.texture_filter = TextureFilter::area;
+  CHECK(b.g.texture_filter == TextureFilter::point);  // the default (docs/data.md says why)
   // The luminance's power in the finest octave (0.25-0.5 cycles per pixel) over its total (mean removed):
   // point-sampled photos minified up to 4x fold their fine detail into it.
   auto finest = [](const torch::Tensor& cube) {
