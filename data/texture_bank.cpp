@@ -75,7 +75,8 @@ namespace {
 // Mirror pixel coordinates into [0, n-1] with period 2(n-1), in float64.
 torch::Tensor mirror(const torch::Tensor& c, int64_t n) {
   const double period = 2.0 * double(n - 1);
-  const torch::Tensor m = c.to(torch::kFloat64) - torch::floor(c.to(torch::kFloat64) / period) * period;
+  const torch::Tensor cd = c.to(torch::kFloat64);
+  const torch::Tensor m = cd - torch::floor(cd / period) * period;
   return torch::where(m > double(n - 1), period - m, m);
 }
 
