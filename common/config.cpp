@@ -206,6 +206,7 @@ DataConfig parse_data(const JsonReader& d) {
   if (c.intensity_max < c.intensity_min) d.fail("intensity_max", "must be >= data.intensity_min");
   c.patch_size_px = int_in(d, "patch_size_px", c.patch_size_px, 8, 8192);
   c.render_margin_px = int_in(d, "render_margin_px", c.render_margin_px, -1, 4096, " (-1 = optics.psf_size / 2)");
+  c.border_patches = d.get_bool("border_patches", c.border_patches);
   // data.patches (an epoch size) was never read by training, which draws
   // train.batch_size patches per step: still accepted, so configs saved by
   // earlier runs load, with a warning.
@@ -384,6 +385,7 @@ TrainConfig parse_train(const JsonReader& t) {
   T.precision = read_choice(t, "precision", T.precision);
   T.clip_grad_norm = t.get_number("clip_grad_norm", T.clip_grad_norm);
   if (T.clip_grad_norm < 0.0) t.fail("clip_grad_norm", "must be >= 0 (0 = off)");
+  T.network_context_px = int_in(t, "network_context_px", T.network_context_px, 0, 4096);
   T.ema_decay = number_in(t, "ema_decay", T.ema_decay, '[', 0.0, 1.0, ')');
   T.spectral_wiener_doe_gradient = t.get_bool("spectral_wiener_doe_gradient", T.spectral_wiener_doe_gradient);
   T.preinverse_doe_gradient = t.get_bool("preinverse_doe_gradient", T.preinverse_doe_gradient);

@@ -230,6 +230,13 @@ struct TrainConfig {
   LrDecay decay = LrDecay::cosine;  // "cosine" (to min_lr_ratio at the last step) | "none"
   double min_lr_ratio = 0.05;
   double clip_grad_norm = 1.0;      // the network's gradient norm (not the DOE's); 0 = off
+  // Scene context [px] the network sees around each training or validation
+  // patch, on every side: its input is the centre (patch + 2 c) of the
+  // rendered window and its outputs are cropped back to the patch before the
+  // loss, so every scored pixel has c px of the scene beside it, as in a whole
+  // scene. 0 = the network sees the patch alone (the paper's); at most
+  // data.render_margin_px (the rendered reach). Evaluation is unchanged.
+  int64_t network_context_px = 0;
   // Exponential moving average of the trained weights (network and DOE), the
   // model that validation, checkpoints and evaluation use (Polyak averaging):
   // after step k, w̄ ← d_k w̄ + (1 − d_k) w with d_k = min(ema_decay, (1+k)/(10+k)).
@@ -420,6 +427,12 @@ struct DataConfig {
   // soft layer masks' reach, optics.psf_size / 2 + ceil(3 sensor.mask_sigma_px);
   // 0 = none (the patch's own edges replicated outward).
   int64_t render_margin_px = -1;
+  // true: training and validation windows may reach past a scene's border by
+  // the rendering margin, the scene continued by its replicated edge as the
+  // whole-scene renderer continues it, so patches (and the loss) cover the
+  // border band that evaluation scores too; false: every window inside the
+  // scene, so no patch centre comes within the margin of the border.
+  bool border_patches = false;
   int64_t loader_threads = 0;        // scene loading; 0 = all cores
   GeneratorConfig generator;
 };

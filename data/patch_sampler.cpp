@@ -28,17 +28,28 @@ std::vector<int64_t> positions(int64_t n, int64_t stride) {  // 0, stride, ..., 
 }  // namespace
 
 PatchSampler::PatchSampler(const std::vector<LoadedScene>& scenes, int64_t patch_px, int64_t depth_bins,
-                           int64_t stride_px)
-    : scenes_(scenes), patch_(patch_px) {
+                           int64_t stride_px, int64_t overhang_px)
+    : scenes_(scenes), patch_(patch_px), overhang_(overhang_px) {
   if (depth_bins < 1 || stride_px < 1) throw InputError("patch sampler: depth_bins and stride must be >= 1");
+  if (overhang_px < 0) throw InputError("patch sampler: the overhang must be >= 0");
+  if (overhang_px > 0)  // the scenes continued by their replicated edges; candidates in these coordinates
+    for (auto& s : scenes_) {
+      auto pad = [&](const torch::Tensor& t) {
+        return torch::nn::functional::pad(t.unsqueeze(0), torch::nn::functional::PadFuncOptions(
+                                                              {overhang_px, overhang_px, overhang_px, overhang_px})
+                                                              .mode(torch::kReplicate))
+            .squeeze(0);
+      };
+      s.scene.spectral = pad(s.scene.spectral), s.scene.depth_m = pad(s.scene.depth_m), s.scene.mask = pad(s.scene.mask);
+    }
   struct Scored {
     Candidate c;
     double inv_depth;
   };
   std::vector<Scored> all;
   const double full = double(patch_px) * double(patch_px);
-  for (size_t s = 0; s < scenes.size(); ++s) {
-    const auto& sc = scenes[s].scene;
+  for (size_t s = 0; s < scenes_.size(); ++s) {
+    const auto& sc = scenes_[s].scene;
     const int64_t H = sc.spectral.size(1), W = sc.spectral.size(2);
     if (H < patch_px || W < patch_px) continue;
     const torch::Tensor valid = (sc.mask[0] > 0.5).to(torch::kFloat64);
@@ -75,7 +86,7 @@ std::vector<PatchSpec> PatchSampler::draw(int64_t count, uint64_t seed, int64_t 
     const auto& bin = bins_[std::uniform_int_distribution<size_t>(0, bins_.size() - 1)(rng)];
     const Candidate& c = bin[std::uniform_int_distribution<size_t>(0, bin.size() - 1)(rng)];
     PatchSpec p;
-    p.scene = c.scene, p.y = c.y, p.x = c.x;
+    p.scene = c.scene, p.y = c.y - overhang_, p.x = c.x - overhang_;
     p.flip = std::uniform_int_distribution<int>(0, 1)(rng) == 1;
     p.rot90 = std::uniform_int_distribution<int64_t>(0, 3)(rng);
     if (illuminants > 0) p.lighting = draw_lighting(rng, illuminants, intensity_min, intensity_max);
@@ -88,7 +99,7 @@ Patch PatchSampler::extract(const PatchSpec& spec, const IlluminantBank* bank) c
   if (spec.scene < 0 || spec.scene >= int64_t(scenes_.size())) throw InputError("patch spec names no scene");
   const auto& sc = scenes_[size_t(spec.scene)].scene;
   auto crop = [&](const torch::Tensor& t) {
-    torch::Tensor c = t.narrow(1, spec.y, patch_).narrow(2, spec.x, patch_);
+    torch::Tensor c = t.narrow(1, spec.y + overhang_, patch_).narrow(2, spec.x + overhang_, patch_);
     if (spec.flip) c = c.flip({2});
     if (spec.rot90) c = torch::rot90(c, spec.rot90, {1, 2});
     return c.contiguous();

@@ -148,6 +148,10 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
   // The PSF's reach plus the soft layer masks' (3σ): then the patch's image is
   // the whole scene's image at those pixels (tests: sensor, margin).
   margin_ = render_margin_px(cfg);
+  if (cfg.train.network_context_px > margin_)
+    throw InputError("train.network_context_px: " + std::to_string(cfg.train.network_context_px) +
+                     " px is more scene than is rendered around a patch (data.render_margin_px: " + std::to_string(margin_) +
+                     " px)");
   net_->to(device_);
   refresh_preinverse();
   weights_ = {cfg.train.loss_alpha, cfg.train.loss_beta, cfg.train.loss_gamma, cfg.train.depth_loss};
@@ -293,12 +297,13 @@ void Trainer::attach_data() {
     give_illuminant_moments(train_scenes_);  // used with model.read_illuminant; kept in checkpoints either way
   }
   const int64_t rendered = cfg_.data.patch_size_px + 2 * margin_;
-  sampler_ = std::make_unique<data::PatchSampler>(train_scenes_, rendered);
+  const int64_t overhang = cfg_.data.border_patches ? margin_ : 0;  // the patch's centre anywhere in the scene
+  sampler_ = std::make_unique<data::PatchSampler>(train_scenes_, rendered, 8, 4, overhang);
   // Validation: the val split (the train split with other patches if there is none).
   std::unique_ptr<data::PatchSampler> val_sampler;
   if (!m.split("val").empty()) {
     val_scenes_ = data::load_split(root, "val", bands, bw, cfg_.data.loader_threads);
-    val_sampler = std::make_unique<data::PatchSampler>(val_scenes_, rendered);
+    val_sampler = std::make_unique<data::PatchSampler>(val_scenes_, rendered, 8, 4, overhang);
   } else {
     log::warn(root + "/manifest.json has no val split: validating on other patches of the train split");
   }
@@ -315,10 +320,26 @@ void Trainer::attach_data() {
             format("%.3f m", 1.0 / baseline_inv_depth_) + " (the train split's median inverse depth)");
 }
 
-torch::Tensor Trainer::centre(const torch::Tensor& t) const {
-  const int64_t S = cfg_.data.patch_size_px, m = (t.size(2) - S) / 2;
+namespace {
+// The centre S×S of [B, C, S', S'] (itself when S' <= S; undefined stays undefined).
+torch::Tensor centre_square(const torch::Tensor& t, int64_t S) {
+  if (!t.defined()) return t;
+  const int64_t m = (t.size(2) - S) / 2;
   if (m <= 0) return t;
   return t.narrow(2, m, S).narrow(3, m, S);
+}
+}  // namespace
+
+torch::Tensor Trainer::centre(const torch::Tensor& t) const { return centre_square(t, cfg_.data.patch_size_px); }
+
+torch::Tensor Trainer::net_view(const torch::Tensor& t) const {
+  return centre_square(t, cfg_.data.patch_size_px + 2 * cfg_.train.network_context_px);
+}
+
+model::NetOutput Trainer::to_patch(model::NetOutput o) const {
+  for (torch::Tensor* t : {&o.hs, &o.inv_depth, &o.depth_m, &o.depth_unit, &o.depth_logits, &o.network_depth_m, &o.reader_depth_m})
+    if (t->defined()) *t = centre(*t);
+  return o;
 }
 
 torch::Tensor Trainer::psf_stack() const {
@@ -345,17 +366,16 @@ std::vector<int64_t> Trainer::all_bands() const {
 
 torch::Tensor Trainer::fused_reader_cost(const torch::Tensor& window) const {
   // The fused reader reads the whole rendered window, as the network's linear
-  // inputs do, and is cropped to the patch: on the patch alone it would see
-  // little scene.
+  // inputs do, and is cropped to the network's view: on the patch alone it
+  // would see little scene.
   if (!net_->options().fuse_defocus_reader || net_->is_training()) return {};
-  return centre(net_->fusion_reader_cost(window));
+  return net_view(net_->fusion_reader_cost(window));
 }
 
 model::NetOutput Trainer::reconstruct_window(const torch::Tensor& window) {
-  const torch::Tensor J = centre(window);
-  const torch::Tensor pre = net_->options().preinverse_layers > 0 ? centre(net_->preinverse(window)) : torch::Tensor();
-  const torch::Tensor base = net_->options().residual_spectral_wiener ? centre(net_->spectral_wiener(window)) : torch::Tensor();
-  return net_->forward(J, pre, base, fused_reader_cost(window));
+  const torch::Tensor pre = net_->options().preinverse_layers > 0 ? net_->preinverse(window) : torch::Tensor();
+  const torch::Tensor base = net_->options().residual_spectral_wiener ? net_->spectral_wiener(window) : torch::Tensor();
+  return to_patch(net_->forward(net_view(window), net_view(pre), net_view(base), fused_reader_cost(window)));
 }
 
 void Trainer::refresh_preinverse() {
@@ -469,18 +489,21 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   if (prof) prof->sensor_forward -= cuts.seconds(), prof->psf_forward += cuts.seconds();
   const torch::Tensor& image = si.image.image;
   const torch::Tensor window = prof && image.requires_grad() ? image.detach().requires_grad_() : image;
-  torch::Tensor pre_in;  // the whole rendered window's deconvolutions, then its centre (no wrap-around at the patch)
+  // The whole rendered window's deconvolutions and spectral Wiener base (no
+  // wrap-around at the patch), then the network's view of them: the patch and
+  // train.network_context_px around it, its outputs cropped to the patch.
+  torch::Tensor pre_in;
   if (si.rgb_psf.defined()) {
     net_->set_preinverse_psf(si.rgb_psf);
-    pre_in = centre(net_->preinverse(window));
+    pre_in = net_view(net_->preinverse(window));
   }
-  torch::Tensor base_in;  // the spectral Wiener base of the whole window, then its centre
+  torch::Tensor base_in;
   if (si.band_psf.defined()) {
     net_->set_band_psf(si.band_psf);
-    base_in = centre(net_->spectral_wiener(window));
+    base_in = net_view(net_->spectral_wiener(window));
   }
   timer.lap(&StepProfile::inputs_forward);
-  const model::NetOutput out = net_->forward(centre(window), pre_in, base_in);
+  const model::NetOutput out = to_patch(net_->forward(net_view(window), pre_in, base_in));
   timer.lap(&StepProfile::network_forward);
   const LossTerms L =
       reconstruction_loss(out.hs, centre(batch.radiance), out.inv_depth, 1.0 / centre(batch.depth_m), weights_, {},
@@ -534,10 +557,11 @@ ValStats Trainer::validate() {
                                 optics::LeaveOut(), val_psf);
     const torch::Tensor I = centre(Iw), Z = centre(Zw), J = centre(img.image);
     // The window's deconvolutions once: the network's input and the Wiener baseline (reconstruct_window's work).
-    const torch::Tensor pre = K > 0 ? centre(net_->preinverse(img.image)) : torch::Tensor();
+    const torch::Tensor pre_view = K > 0 ? net_view(net_->preinverse(img.image)) : torch::Tensor();
+    const torch::Tensor pre = K > 0 ? centre(pre_view) : torch::Tensor();
     const torch::Tensor base =
-        net_->options().residual_spectral_wiener ? centre(net_->spectral_wiener(img.image)) : torch::Tensor();
-    const model::NetOutput out = net_->forward(J, pre, base, fused_reader_cost(img.image));
+        net_->options().residual_spectral_wiener ? net_view(net_->spectral_wiener(img.image)) : torch::Tensor();
+    const model::NetOutput out = to_patch(net_->forward(net_view(img.image), pre_view, base, fused_reader_cost(img.image)));
     se_up += (model::spectral_upsample(upsampling_w_.to(J.device()), J) - I).pow(2).sum().item<double>();
     if (K > 0) {  // the Wiener baseline: the layers' mean deconvolution of the window, upsampled
       const torch::Tensor wm = model::preinverse_layer_mean(pre, K);

@@ -41,8 +41,8 @@
 namespace hsd::train {
 
 // A batch of patches with their rendering margin m (data.render_margin_px):
-// S' = S + 2m; the sensor image is rendered on S' and the network and the loss
-// see the centre S×S.
+// S' = S + 2m; the sensor image is rendered on S', the network sees its
+// centre S + 2c (c = train.network_context_px <= m) and the loss the centre S×S.
 struct Batch {
   torch::Tensor radiance;   // [B, L, S', S']
   torch::Tensor depth_m;    // [B, 1, S', S']
@@ -164,17 +164,23 @@ class Trainer {
   void record_validation(MetricsLog& metrics, int64_t step, const std::string& val_dir, bool log_line);
   std::string progress_suffix(double loss, double seconds, int64_t steps, double collective_seconds) const;
   void write_val_pictures(const std::string& dir, int64_t step);
-  // The network on the centre patch of a rendered window [B, 3, S', S'] (the
+  // The network on its view of a rendered window [B, 3, S', S'] (net_view; the
   // pre-inversion, the spectral Wiener base and the fused reader's costs,
-  // when on, of the whole window, then its centre).
+  // when on, of the whole window, then that view), cropped to the centre patch.
   model::NetOutput reconstruct_window(const torch::Tensor& window);
-  // The fused reader's costs of a window, cropped to its centre patch
-  // [B, K, S, S]; undefined unless model.fuse_defocus_reader and eval mode.
+  // The fused reader's costs of a window, cropped to the network's view
+  // (net_view); undefined unless model.fuse_defocus_reader and eval mode.
   torch::Tensor fused_reader_cost(const torch::Tensor& window) const;
   std::vector<int64_t> all_layers() const;  // 0 .. Z−1
   std::vector<int64_t> all_bands() const;   // 0 .. L−1
   // The centre patch_size_px × patch_size_px of [B, C, S', S'] (itself when S' = S).
   torch::Tensor centre(const torch::Tensor& t) const;
+  // What the network sees of a window [B, C, S', S']: its centre, the patch
+  // and train.network_context_px on every side (itself when no larger;
+  // undefined stays undefined).
+  torch::Tensor net_view(const torch::Tensor& t) const;
+  // The network's outputs over its view cropped to the patch (centre).
+  model::NetOutput to_patch(model::NetOutput o) const;
   std::vector<torch::Tensor> trained_parameters() const;  // what Adam updates
   std::vector<std::string> trained_names() const;         // theirs in checkpoints: "net.<name>", "doe.raw"
   // Weight averaging (train.ema_decay > 0): the trained parameters and

@@ -81,3 +81,39 @@ TEST_CASE("data: the patch sampler never returns an invalid pixel and covers the
   holes[0].scene.mask.narrow(1, 15, 1).zero_();
   CHECK_THROWS_AS(data::PatchSampler(holes, 20), InputError);
 }
+
+TEST_CASE("data: with an overhang, windows reach past the scene's border by it, the scene continued by its replicated edge, and their centres cover the whole scene",
+          "[data]") {
+  const auto w = nm({450, 550, 650});
+  const int64_t H = 30, W = 40, S = 20, o = 6;  // windows of 20 px whose centre 8 px is the patch
+  std::vector<data::LoadedScene> scenes(1);
+  data::SpectralScene s = flat_scene(w, H, W, 0.5, 1.0);
+  // value = 1000 row + column: every pixel tells where it came from.
+  s.spectral = (torch::arange(W, torch::kFloat32).view({1, 1, W}) + 1000 * torch::arange(H, torch::kFloat32).view({1, H, 1}))
+                   .expand({3, H, W})
+                   .clone();
+  scenes[0].scene = s;
+  const data::PatchSampler inside(scenes, S, 1, 1), over(scenes, S, 1, 1, o);
+  CHECK(inside.candidates() == (H - S + 1) * (W - S + 1));
+  CHECK(over.candidates() == (H - S + 1 + 2 * o) * (W - S + 1 + 2 * o));
+  const data::IlluminantBank bank({"D65"}, w, 10e-9);
+  int64_t y_min = H, y_max = -H, x_min = W, x_max = -W;
+  for (data::PatchSpec p : over.draw(2000, 7, bank.size(), 1.0, 1.0)) {
+    REQUIRE(p.y >= -o);
+    REQUIRE(p.y + S <= H + o);
+    y_min = std::min(y_min, p.y), y_max = std::max(y_max, p.y), x_min = std::min(x_min, p.x), x_max = std::max(x_max, p.x);
+    p.flip = false, p.rot90 = 0, p.lighting = {0, 1.0};
+    const torch::Tensor got = over.extract(p, &bank).spectral[0] / bank.spectrum(0)[0];
+    // By hand: each window pixel is the scene's nearest pixel (clamped coordinates).
+    const torch::Tensor rows = (torch::arange(S) + p.y).clamp(0, H - 1), cols = (torch::arange(S) + p.x).clamp(0, W - 1);
+    const torch::Tensor expect = (cols.view({1, S}) + 1000 * rows.view({S, 1})).to(torch::kFloat32);
+    REQUIRE(torch::allclose(got, expect, 1e-5, 1e-3));
+  }
+  // Windows at every overhanging extreme were drawn: the patch (the window's
+  // centre, o px in) then touches each border of the scene.
+  CHECK(y_min == -o);
+  CHECK(y_max == H - S + o);
+  CHECK(x_min == -o);
+  CHECK(x_max == W - S + o);
+  CHECK_THROWS_AS(data::PatchSampler(scenes, S, 1, 1, -1), InputError);
+}

@@ -229,6 +229,52 @@ TEST_CASE("train: a frozen design's PSFs are computed once, render as computed a
   CHECK(frozen.psf_stack().equal(fresh));
 }
 
+TEST_CASE("train: the network's context (train.network_context_px) reaches the network and is cropped away before the loss",
+          "[train]") {
+  const std::string root = (fs::temp_directory_path() / "hsd_test_train_context").string();
+  // Patches of 16 px rendered with 8 px of scene around them: windows of 32 px.
+  // (No data attached: the network keeps torch's initialisation, the same for
+  // every trainer of this seed, unless a case starts its heads at the baselines.)
+  auto trainer = [&](int64_t context_px) {
+    return train::Trainer(tiny_training(root, {"data.render_margin_px=8", "train.network_context_px=" + std::to_string(context_px)}));
+  };
+  auto window_batch = [] {
+    torch::manual_seed(5);
+    train::Batch b;
+    b.radiance = torch::rand({2, 3, 32, 32});
+    b.depth_m = 0.5 + torch::rand({2, 1, 32, 32});
+    return b;
+  };
+  // Heads at the baselines: the output is the spectral upsampling of the
+  // image and one depth at every pixel, so a network that sees more of the
+  // window scores the same loss on the patch, if the crop is the patch.
+  auto at_baselines = [&](int64_t context_px) {
+    train::Trainer t = trainer(context_px);
+    t.net()->start_at_baselines(1.0);
+    return t.step(window_batch(), 0).loss;
+  };
+  CHECK(at_baselines(8) == Approx(at_baselines(0)).epsilon(1e-6));
+  // torch's initialisation: the same weights answer the patch differently
+  // once they see the scene around it (the convolutions reach across the
+  // patch's border).
+  const double random_0 = trainer(0).step(window_batch(), 0).loss;
+  const double random_4 = trainer(4).step(window_batch(), 0).loss;
+  CHECK(random_4 != Approx(random_0).epsilon(1e-4));
+  // And it still learns: five steps on the batch lower the loss.
+  train::Trainer t = trainer(8);
+  const double first = t.step(window_batch(), 0).loss;
+  double last = first;
+  for (int k = 1; k <= 5; ++k) last = t.step(window_batch(), k).loss;
+  CHECK(last < first);
+  // More context than is rendered is refused, naming the key.
+  try {
+    trainer(9);
+    FAIL("a context beyond the rendered margin was accepted");
+  } catch (const InputError& e) {
+    CHECK(std::string(e.what()).find("train.network_context_px") != std::string::npos);
+  }
+}
+
 TEST_CASE("train: checkpoint then resume equals an uninterrupted run", "[train]") {
   const fs::path dir = fs::temp_directory_path() / "hsd_test_train_resume";
   fs::remove_all(dir);
