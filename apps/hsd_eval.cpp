@@ -96,6 +96,10 @@ void log_summary(const train::EvalResult& r, const std::string& split) {
                   a.layer_oracle_depth_rmse_m, a.layer_oracle_depth_mae_m);
     log::info(buf);
   }
+  {
+    std::string interior = train::interior_summary(a);
+    log::info(interior.substr(interior.find_first_not_of('\n')));
+  }
   if (!std::isnan(a.depth_effective_resolution_px)) {
     std::snprintf(buf, sizeof buf,
                   "the depth RMSE equals that of the true depth averaged over a box of %s (the resolution oracle, "

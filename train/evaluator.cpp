@@ -66,6 +66,40 @@ std::string spectral_wiener_summary(const SceneMetrics& m) {
   return out;
 }
 
+std::string interior_summary(const SceneMetrics& m) {
+  char buf[700];
+  if (m.interior_scenes == 0) {
+    std::snprintf(buf, sizeof buf, "\nThe interior (the valid pixels at least %lld px from every border): no scene has "
+                  "one; every pixel lies within the PSF's reach of its scene's border.\n", (long long)m.interior_margin_px);
+    return buf;
+  }
+  std::snprintf(buf, sizeof buf,
+                "\nThe interior (interior_*: the valid pixels at least %lld px, the rendering margin, from every border, "
+                "where every training patch's pixels lie; %.0f %% of the valid pixels), mean over %lld scenes: HS PSNR "
+                "%.2f dB (upsampling alone %.2f dB, %+.2f dB over it)",
+                (long long)m.interior_margin_px, 100.0 * m.interior_fraction, (long long)m.interior_scenes,
+                m.interior_hs_psnr_db, m.interior_baseline_upsampling_hs_psnr_db,
+                m.interior_hs_psnr_db - m.interior_baseline_upsampling_hs_psnr_db);
+  std::string out = buf;
+  if (std::isfinite(m.interior_baseline_spectral_wiener_hs_psnr_db)) {
+    std::snprintf(buf, sizeof buf, "; the spectral Wiener baseline %.2f dB", m.interior_baseline_spectral_wiener_hs_psnr_db);
+    out += buf;
+  }
+  if (std::isfinite(m.interior_model_base_hs_psnr_db)) {
+    std::snprintf(buf, sizeof buf, "; the network's residual base alone %.2f dB, the U-Net adds %+.2f dB to it",
+                  m.interior_model_base_hs_psnr_db, m.interior_hs_psnr_db - m.interior_model_base_hs_psnr_db);
+    out += buf;
+  }
+  std::snprintf(buf, sizeof buf, "; depth RMSE %.4f m", m.interior_depth_rmse_m);
+  out += buf;
+  if (std::isfinite(m.interior_baseline_constant_depth_rmse_m) && m.interior_baseline_constant_depth_rmse_m > 0) {
+    std::snprintf(buf, sizeof buf, " (the constant %.4f m, %.2f x it)", m.interior_baseline_constant_depth_rmse_m,
+                  m.interior_depth_rmse_m / m.interior_baseline_constant_depth_rmse_m);
+    out += buf;
+  }
+  return out + ".";
+}
+
 std::string effective_resolution_text(double px) {
   return std::isfinite(px) ? std::to_string(std::lround(px)) + " px"
                            : "more than " + std::to_string(kOracleWindowsPx.back()) + " px";
@@ -147,6 +181,7 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
                      std::to_string(K));
   int cc_count = 0;
   double cc_sum = 0.0;
+  const int64_t interior_margin = render_margin_px(cfg);
   log::Progress progress("evaluate", long(scenes.size()));
   for (size_t i = 0; i < scenes.size(); ++i) {
     const auto& ls = scenes[i];
@@ -167,7 +202,20 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     m.file = ls.file;
     m.data_range = std::max(1e-12, radiance.max().item<double>());
     const torch::Tensor& valid = sc.mask;
+    // The interior: the valid pixels beyond the PSF's reach of the border (metrics.h).
+    m.interior_margin_px = interior_margin;
+    const torch::Tensor inner = interior_mask(valid, interior_margin);
+    const double n_valid = (valid > 0.5).sum().item<double>(), n_inner = inner.sum().item<double>();
+    const bool has_inner = n_inner > 0;
+    if (n_valid > 0) m.interior_fraction = n_inner / n_valid;
+    auto inner_psnr = [&](const torch::Tensor& cube) {
+      return has_inner ? psnr_db(cube, radiance, m.data_range, inner) : std::nan("");
+    };
+    auto inner_rmse = [&](const torch::Tensor& d) {
+      return has_inner ? depth_errors(d, sc.depth_m, inner).rmse_m : std::nan("");
+    };
     m.hs_psnr_db = psnr_db(hs, radiance, m.data_range, valid);
+    m.interior_hs_psnr_db = inner_psnr(hs);
     m.hs_ssim = ssim(hs, radiance, m.data_range, valid);
     const torch::Tensor Yt = luminance(radiance, ybar), Yp = luminance(hs, ybar);
     const double yr = std::max(1e-12, Yt.max().item<double>());
@@ -175,6 +223,7 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     m.lum_ssim = ssim(Yp, Yt, yr, valid);
     const DepthErrors de = depth_errors(dp, sc.depth_m, valid);
     m.depth_rmse_m = de.rmse_m, m.depth_mae_m = de.mae_m;
+    m.interior_depth_rmse_m = inner_rmse(dp);
     if (out.network_depth_m.defined() && out.reader_depth_m.defined()) {  // the fused depth's two readings alone
       const DepthErrors dn = depth_errors(out.network_depth_m[0].cpu(), sc.depth_m, valid);
       const DepthErrors dr = depth_errors(out.reader_depth_m[0].cpu(), sc.depth_m, valid);
@@ -185,6 +234,7 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
     const torch::Tensor up = model::spectral_upsample(up_w, img.image.cpu())[0];
     m.baseline_upsampling_hs_psnr_db = psnr_db(up, radiance, m.data_range, valid);
     m.baseline_upsampling_hs_ssim = ssim(up, radiance, m.data_range, valid);
+    m.interior_baseline_upsampling_hs_psnr_db = inner_psnr(up);
     // The Wiener baseline's image once: upsampled by the fixed map here, by a learned one below.
     const torch::Tensor wmean = wiener_mean_image(img.image.cpu(), rgb_psf, cfg.model.preinverse_reg);
     const torch::Tensor wup = model::spectral_upsample(up_w, wmean)[0];
@@ -196,6 +246,7 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
       const torch::Tensor sw = model::apply_spectral_wiener(model::spectral_wiener_filter(otf, omega, *sw_prior), y)[0];
       m.baseline_spectral_wiener_hs_psnr_db = psnr_db(sw, radiance, m.data_range, valid);
       m.baseline_spectral_wiener_hs_ssim = ssim(sw, radiance, m.data_range, valid);
+      m.interior_baseline_spectral_wiener_hs_psnr_db = inner_psnr(sw);
       // The same LMMSE cube with each pixel's rendering layer known: what the
       // linear base would gain from the depth (model/layered_spectral_wiener.h).
       const torch::Tensor known =
@@ -208,10 +259,12 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
       const torch::Tensor mb = model::spectral_upsample(model_map.to(torch::kFloat32), base)[0];
       m.model_base_hs_psnr_db = psnr_db(mb, radiance, m.data_range, valid);
       m.model_base_hs_ssim = ssim(mb, radiance, m.data_range, valid);
+      m.interior_model_base_hs_psnr_db = inner_psnr(mb);
     } else if (out.base_hs.defined()) {  // the base the reconstructor gave (the illuminant reader's spectral Wiener cube)
       const torch::Tensor mb = out.base_hs[0].cpu();
       m.model_base_hs_psnr_db = psnr_db(mb, radiance, m.data_range, valid);
       m.model_base_hs_ssim = ssim(mb, radiance, m.data_range, valid);
+      m.interior_model_base_hs_psnr_db = inner_psnr(mb);
     }
     if (out.illuminant_weights.defined() && out.illuminant_weights.size(-1) == int64_t(cfg.data.illuminants.size())) {
       const torch::Tensor w = out.illuminant_weights.reshape({-1}).cpu();
@@ -220,8 +273,10 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
       m.illuminant_read_weight = w[k].item<double>();
     }
     if (constant_known) {
-      const DepthErrors dc = depth_errors(constant_depth_map(sc.depth_m, baseline_inv_depth), sc.depth_m, valid);
+      const torch::Tensor constant = constant_depth_map(sc.depth_m, baseline_inv_depth);
+      const DepthErrors dc = depth_errors(constant, sc.depth_m, valid);
       m.baseline_constant_depth_rmse_m = dc.rmse_m, m.baseline_constant_depth_mae_m = dc.mae_m;
+      m.interior_baseline_constant_depth_rmse_m = inner_rmse(constant);
     }
     // The classical depth-from-defocus reader on the same image and PSFs as the network's inputs.
     const torch::Tensor dfd =
@@ -350,6 +405,28 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
           a.baseline_constant_depth_mae_m += m.baseline_constant_depth_mae_m / n;
   }
   a.colorchecker_rmse = cc_count > 0 ? cc_sum / double(cc_count) : -1.0;
+  // The interior's means over the scenes that have one (NaN when none does).
+  a.interior_margin_px = interior_margin;
+  for (const auto& m : res.scenes) a.interior_scenes += std::isfinite(m.interior_hs_psnr_db) ? 1 : 0;
+  auto interior_mean = [&](double SceneMetrics::*field) {
+    double sum = 0.0;
+    int64_t k = 0;
+    for (const auto& m : res.scenes)
+      if (std::isfinite(m.*field)) sum += m.*field, ++k;
+    return k > 0 && k == a.interior_scenes ? sum / double(k) : std::nan("");
+  };
+  for (double SceneMetrics::*f :
+       {&SceneMetrics::interior_hs_psnr_db, &SceneMetrics::interior_model_base_hs_psnr_db,
+        &SceneMetrics::interior_baseline_upsampling_hs_psnr_db, &SceneMetrics::interior_baseline_spectral_wiener_hs_psnr_db,
+        &SceneMetrics::interior_depth_rmse_m, &SceneMetrics::interior_baseline_constant_depth_rmse_m})
+    a.*f = interior_mean(f);
+  if (!res.scenes.empty()) {  // interior_fraction: over every scene with a valid pixel
+    double sum = 0.0;
+    int64_t k = 0;
+    for (const auto& m : res.scenes)
+      if (std::isfinite(m.interior_fraction)) sum += m.interior_fraction, ++k;
+    a.interior_fraction = k > 0 ? sum / double(k) : std::nan("");
+  }
   viz::write_psf_atlas(out_dir + "/psf_atlas.png", imaging_psf,
                           psf.spec().wavelengths_m, psf.spec().depths_m);
   // metrics.json (docs/formats.md keys) and report.md.
@@ -397,6 +474,16 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
       j["fused_reader_depth_rmse_m"] = m.fused_reader_depth_rmse_m;
       j["fused_reader_depth_mae_m"] = m.fused_reader_depth_mae_m;
     }
+    j["interior_margin_px"] = m.interior_margin_px;
+    if (std::isfinite(m.interior_fraction)) j["interior_fraction"] = m.interior_fraction;
+    for (const auto& [key, v] : std::initializer_list<std::pair<const char*, double>>{
+             {"interior_hs_psnr_db", m.interior_hs_psnr_db},
+             {"interior_model_base_hs_psnr_db", m.interior_model_base_hs_psnr_db},
+             {"interior_baseline_upsampling_hs_psnr_db", m.interior_baseline_upsampling_hs_psnr_db},
+             {"interior_baseline_spectral_wiener_hs_psnr_db", m.interior_baseline_spectral_wiener_hs_psnr_db},
+             {"interior_depth_rmse_m", m.interior_depth_rmse_m},
+             {"interior_baseline_constant_depth_rmse_m", m.interior_baseline_constant_depth_rmse_m}})
+      if (std::isfinite(v)) j[key] = v;
     if (!std::isnan(m.depth_effective_resolution_px))  // JSON has no infinity: coarser than every window is null
       j["depth_effective_resolution_px"] = std::isfinite(m.depth_effective_resolution_px) ? Json(m.depth_effective_resolution_px) : Json();
     return j;
@@ -405,6 +492,7 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
   Json j = row(a);
   j.erase("file");
   j["split"] = split;
+  j["interior_scenes"] = a.interior_scenes;
   if (constant_known) j["baseline_constant_depth_m"] = 1.0 / baseline_inv_depth;
   j["scenes"] = Json::array();
   for (const auto& m : res.scenes) j["scenes"].push_back(row(m));
@@ -432,7 +520,11 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
                "optics.depths_m), what reading the optical cue perfectly and nothing else allows" +
                std::string(sw_prior ? "; reference_depth_known_spectral_wiener_hs_psnr_db: the spectral Wiener cube with "
                                       "each valid pixel's rendering layer known (that layer's LMMSE cube), what the depth "
-                                      "adds to the linear cube, not a baseline" : "");
+                                      "adds to the linear cube, not a baseline" : "") +
+               "; interior_*: the same metrics over the valid pixels at least interior_margin_px (the rendering margin, "
+               "the PSF's reach) from every border, where every training patch's pixels lie, with the whole scene's "
+               "data range (the mean: over the interior_scenes scenes that have such pixels; interior_fraction: their "
+               "share of the valid pixels)";
   write_text_file(out_dir + "/metrics.json", j.dump(2) + "\n");
   std::string md = "# Evaluation (" + split + " split)\n\n" + j["notes"].get<std::string>() + ".\n\n" +
                    "| scene | HS PSNR [dB] | HS SSIM | Wiener baseline PSNR [dB] / SSIM | lum PSNR [dB] | lum SSIM | depth RMSE [m] | "
@@ -518,6 +610,7 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
                   a.depth_rmse_m, a.depth_rmse_m / std::max(1e-12, a.network_depth_rmse_m));
     md += buf;
   }
+  md += interior_summary(a) + "\n";
   md += "\nPictures: `<scene>_compare.png` (truth | reconstruction | |error| x4 | true depth | predicted depth), "
         "`<scene>_spectra.png`, `colorchecker_spectra.png`, `psf_atlas.png`.\n";
   write_text_file(out_dir + "/report.md", md);

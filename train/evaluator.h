@@ -57,6 +57,17 @@ struct SceneMetrics {
   // The readings a fused depth combines (Reconstruction), each alone [m]; NaN when the depth is not fused.
   double network_depth_rmse_m = std::nan(""), network_depth_mae_m = std::nan("");
   double fused_reader_depth_rmse_m = std::nan(""), fused_reader_depth_mae_m = std::nan("");
+  // The interior (metrics.h, interior_mask): the same metrics over the valid
+  // pixels at least interior_margin_px (data.render_margin_px resolved, the
+  // PSF's reach) from every border, where every training patch's pixels lie;
+  // the PSNR's data range is the whole scene's. NaN when the scene has no
+  // valid interior pixel or the metric is not reported; on the mean, the mean
+  // over the scenes that have an interior (interior_scenes of them).
+  int64_t interior_margin_px = 0, interior_scenes = 0;
+  double interior_fraction = std::nan("");  // valid interior pixels / valid pixels
+  double interior_hs_psnr_db = std::nan(""), interior_model_base_hs_psnr_db = std::nan("");
+  double interior_baseline_upsampling_hs_psnr_db = std::nan(""), interior_baseline_spectral_wiener_hs_psnr_db = std::nan("");
+  double interior_depth_rmse_m = std::nan(""), interior_baseline_constant_depth_rmse_m = std::nan("");
 };
 
 // The classical depth-from-defocus baseline's model (model/defocus_likelihood.h):
@@ -73,6 +84,8 @@ inline constexpr int64_t kSpectralDefocusWindowPx = model::kDefocusReaderWindowP
 inline const std::vector<int64_t> kOracleWindowsPx{3, 5, 9, 15, 31, 63, 127};
 // One sentence on the spectral Wiener baseline of m (its PSNR and SSIM, the model's distance from it).
 std::string spectral_wiener_summary(const SceneMetrics& m);
+// One sentence on the interior's metrics of m (interior_*) against its baselines, led by a blank line.
+std::string interior_summary(const SceneMetrics& m);
 // An effective resolution as text: "52 px", or "more than 127 px" when coarser than every window.
 std::string effective_resolution_text(double px);
 

@@ -1,5 +1,6 @@
 #include "train/metrics.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <torch/torch.h>
@@ -34,6 +35,17 @@ void require_finite(const torch::Tensor& a, const torch::Tensor& b, const char* 
   }
 }
 }  // namespace
+
+torch::Tensor interior_mask(const torch::Tensor& mask, int64_t margin_px) {
+  if (!mask.defined() || mask.dim() != 3 || mask.size(0) != 1) throw InputError("interior_mask: the mask must be [1, H, W]");
+  if (margin_px < 0) throw InputError("interior_mask: the margin must be >= 0 px");
+  torch::Tensor out = (mask > 0.5).to(mask.scalar_type());
+  const int64_t H = mask.size(1), W = mask.size(2);
+  const int64_t my = std::min(margin_px, H), mx = std::min(margin_px, W);
+  out.narrow(1, 0, my).zero_(), out.narrow(1, H - my, my).zero_();
+  out.narrow(2, 0, mx).zero_(), out.narrow(2, W - mx, mx).zero_();
+  return out;
+}
 
 double psnr_db(const torch::Tensor& a, const torch::Tensor& b, double data_range, const torch::Tensor& mask) {
   if (a.sizes() != b.sizes()) throw InputError("PSNR: images differ in size");

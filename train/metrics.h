@@ -31,6 +31,14 @@ constexpr double kPsnrCapDb = 100.0;
 double psnr_db(const torch::Tensor& a, const torch::Tensor& b, double data_range, const torch::Tensor& mask = {});
 double ssim(const torch::Tensor& a, const torch::Tensor& b, double data_range, const torch::Tensor& mask = {});
 
+// The interior of a valid mask: mask [1, H, W] (1 = valid) with every pixel
+// closer than margin_px to the image's border set to 0 (margin_px >= 0; a
+// pixel is interior when margin_px <= y < H - margin_px, likewise x). The
+// evaluator scores it beside whole scenes: a training patch's pixels lie at
+// least the rendering margin (the PSF's reach) inside their scene, where the
+// image does not depend on how the renderer continues the scene past it.
+torch::Tensor interior_mask(const torch::Tensor& mask, int64_t margin_px);
+
 // Weighted band sum: cube [L, H, W], weights [L] (normalised here to sum 1) -> [1, H, W].
 torch::Tensor luminance(const torch::Tensor& cube, const torch::Tensor& weights);
 

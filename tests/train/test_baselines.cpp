@@ -8,6 +8,8 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <string>
 
 #include "common/config.h"
 #include "common/error.h"
@@ -280,6 +282,104 @@ TEST_CASE("baselines: a network that outputs the baselines scores exactly the ba
       train::depth_errors(train::layer_oracle_depth_map(sc0.depth_m, sc0.mask, cfg.optics.depths_m), sc0.depth_m, sc0.mask);
   CHECK(r.scenes[0].layer_oracle_depth_rmse_m == Approx(lo.rmse_m).epsilon(1e-9));
   for (const auto& m : r.scenes) CHECK(m.layer_oracle_depth_rmse_m <= m.baseline_constant_depth_rmse_m + 1e-9);
+}
+
+TEST_CASE("evaluation: the interior metrics score the valid pixels beyond the rendering margin, by hand", "[baselines][eval]") {
+  const fs::path root = fs::temp_directory_path() / "hsd_test_interior";
+  fs::remove_all(root);
+  const std::vector<std::string> sets{"data.root=\"" + root.string() + "\"", "data.generator.train_scenes=2",
+                                      "data.generator.val_scenes=0", "data.generator.test_scenes=2",
+                                      "data.generator.colorchecker=false", "data.generator.width_px=48",
+                                      "data.generator.height_px=40", "sensor.noise_std=0.01"};
+  auto with = [&](const std::string& extra) {
+    std::vector<std::string> v = sets;
+    v.push_back(extra);
+    return load_config(test::source_path("configs/tiny.json"), v);
+  };
+  const Config cfg = with("data.render_margin_px=8");
+  data::ensure_dataset(cfg);
+  const auto bands = cfg.optics.wavelengths_m();
+  const double bw = cfg.optics.band_width_m();
+  const auto train_split = data::load_split(root.string(), "train", bands, bw, 1);
+  const auto test_split = data::load_split(root.string(), "test", bands, bw, 1);
+  const double median = train::median_inverse_depth(train_split);
+  const auto material = optics::Material::load(cfg.optics.material);
+  const optics::PsfSimulator sim(optics::make_psf_spec(cfg.optics, material, torch::kCPU));
+  const optics::SensorModel sensor = optics::make_sensor_model(cfg.sensor, sim.spec(), bw);
+  const torch::Tensor h = optics::initial_height(cfg.optics, material, cfg.seed);
+  const torch::Tensor w = model::spectral_upsampling_weights(sensor.omega);
+  // A "network" answering with the baselines inside the 8-px band and garbage in it.
+  auto banded = [&](const torch::Tensor& x) {
+    torch::Tensor cube = torch::full({1, w.size(0), x.size(2), x.size(3)}, 5.0);
+    torch::Tensor depth = torch::full({1, 1, x.size(2), x.size(3)}, 50.0);
+    const int64_t H = x.size(2) - 16, W = x.size(3) - 16;
+    cube.narrow(2, 8, H).narrow(3, 8, W).copy_(model::spectral_upsample(w, x).narrow(2, 8, H).narrow(3, 8, W));
+    depth.narrow(2, 8, H).narrow(3, 8, W).fill_(1.0 / median);
+    return std::make_pair(cube, depth);
+  };
+  const train::EvalResult r = train::evaluate(sim, sensor, h, banded, cfg, "test", (root / "eval").string(), median);
+  REQUIRE(r.scenes.size() == 2);
+  for (size_t i = 0; i < r.scenes.size(); ++i) {
+    const auto& m = r.scenes[i];
+    CHECK(m.interior_margin_px == 8);
+    // Inside, the answer is the baselines': equal to the bit; outside it is garbage.
+    CHECK(m.interior_hs_psnr_db == m.interior_baseline_upsampling_hs_psnr_db);
+    CHECK(m.interior_depth_rmse_m == m.interior_baseline_constant_depth_rmse_m);
+    CHECK(m.hs_psnr_db < m.baseline_upsampling_hs_psnr_db - 3.0);
+    CHECK(m.depth_rmse_m > 10.0);
+    CHECK(std::isnan(m.interior_model_base_hs_psnr_db));  // no base given: not reported
+    // The constant's interior RMSE and the interior's share by hand: rows 8..31, columns 8..39.
+    const auto& sc = test_split[i].scene;
+    double se = 0, n = 0, n_valid = 0;
+    for (int64_t y = 0; y < 40; ++y)
+      for (int64_t x = 0; x < 48; ++x) {
+        if (sc.mask[0][y][x].item<float>() <= 0.5f) continue;
+        n_valid += 1;
+        if (y < 8 || y >= 32 || x < 8 || x >= 40) continue;
+        const double e = 1.0 / median - double(sc.depth_m[0][y][x].item<float>());
+        se += e * e, n += 1;
+      }
+    REQUIRE(n > 0);
+    CHECK(m.interior_baseline_constant_depth_rmse_m == Approx(std::sqrt(se / n)).epsilon(1e-5));
+    CHECK(m.interior_fraction == Approx(n / n_valid).epsilon(1e-12));
+  }
+  CHECK(r.mean.interior_scenes == 2);
+  CHECK(r.mean.interior_hs_psnr_db == Approx(0.5 * (r.scenes[0].interior_hs_psnr_db + r.scenes[1].interior_hs_psnr_db)));
+  const Json j = Json::parse(std::ifstream(root / "eval" / "metrics.json"));
+  CHECK(j.at("interior_margin_px") == 8);
+  CHECK(j.at("interior_scenes") == 2);
+  for (const char* k : {"interior_fraction", "interior_hs_psnr_db", "interior_baseline_upsampling_hs_psnr_db",
+                        "interior_depth_rmse_m", "interior_baseline_constant_depth_rmse_m"}) {
+    CHECK(j.contains(k));
+    CHECK(j["scenes"][1].contains(k));
+  }
+  CHECK_FALSE(j.contains("interior_model_base_hs_psnr_db"));
+  std::ifstream rep(root / "eval" / "report.md");
+  const std::string md((std::istreambuf_iterator<char>(rep)), std::istreambuf_iterator<char>());
+  CHECK(md.find("The interior (interior_*: the valid pixels at least 8 px") != std::string::npos);
+  // No margin: the interior is the whole valid scene.
+  auto trivial = [&](const torch::Tensor& x) {
+    return std::make_pair(model::spectral_upsample(w, x), train::constant_depth_map(x.narrow(1, 0, 1), median));
+  };
+  const train::EvalResult r0 =
+      train::evaluate(sim, sensor, h, trivial, with("data.render_margin_px=0"), "test", (root / "eval0").string(), median);
+  for (const auto& m : r0.scenes) {
+    CHECK(m.interior_hs_psnr_db == m.hs_psnr_db);
+    CHECK(m.interior_depth_rmse_m == m.depth_rmse_m);
+    CHECK(m.interior_fraction == 1.0);
+  }
+  // A margin of more than half the scene's height: no interior, no keys, and the report says so.
+  const train::EvalResult r20 =
+      train::evaluate(sim, sensor, h, trivial, with("data.render_margin_px=20"), "test", (root / "eval20").string(), median);
+  CHECK(r20.mean.interior_scenes == 0);
+  CHECK(std::isnan(r20.mean.interior_hs_psnr_db));
+  CHECK(r20.mean.interior_fraction == 0.0);
+  const Json j20 = Json::parse(std::ifstream(root / "eval20" / "metrics.json"));
+  CHECK_FALSE(j20.contains("interior_hs_psnr_db"));
+  CHECK_FALSE(j20["scenes"][0].contains("interior_depth_rmse_m"));
+  std::ifstream rep20(root / "eval20" / "report.md");
+  const std::string md20((std::istreambuf_iterator<char>(rep20)), std::istreambuf_iterator<char>());
+  CHECK(md20.find("no scene has one") != std::string::npos);
 }
 
 TEST_CASE("resolution oracle: box means of inverse depth over valid pixels, by hand, and the effective resolution",

@@ -4,6 +4,7 @@
 #include <catch2/catch.hpp>
 #include <cmath>
 
+#include "common/error.h"
 #include "train/metrics.h"
 
 using namespace hsd;
@@ -50,4 +51,25 @@ TEST_CASE("metrics: luminance, depth errors with a mask, ColorChecker RMSE", "[m
   CHECK((rec - torch::tensor({0.2, 0.4, 0.9, 0.1}, torch::kFloat64).view({2, 2})).abs().max().item<double>() < 1e-12);
   const torch::Tensor tru = torch::tensor({0.2, 0.5, 0.9, 0.1}, torch::kFloat64).view({2, 2});
   CHECK(train::mean_patch_rmse(rec, tru) == Approx((std::sqrt(0.01 / 2) + 0.0) / 2));
+}
+
+TEST_CASE("metrics: the interior mask drops the pixels within the margin of every border, by hand", "[metrics]") {
+  torch::Tensor mask = torch::ones({1, 5, 6});
+  mask[0][2][3] = 0.0;  // an invalid pixel inside stays invalid
+  const torch::Tensor in = train::interior_mask(mask, 1);
+  CHECK(in.sizes() == mask.sizes());
+  // Rows 1..3, columns 1..4 survive (3 x 4 = 12), less the invalid one.
+  CHECK(in.sum().item<double>() == 11.0);
+  CHECK(in.narrow(1, 0, 1).sum().item<double>() == 0.0);
+  CHECK(in.narrow(1, 4, 1).sum().item<double>() == 0.0);
+  CHECK(in.narrow(2, 0, 1).sum().item<double>() == 0.0);
+  CHECK(in.narrow(2, 5, 1).sum().item<double>() == 0.0);
+  CHECK(in[0][2][3].item<double>() == 0.0);
+  CHECK(in[0][1][1].item<double>() == 1.0);
+  CHECK(train::interior_mask(mask, 0).equal(mask));            // no margin: the valid mask itself
+  CHECK(train::interior_mask(mask, 3).sum().item<double>() == 0.0);  // 2 x 3 > 5 rows: nothing is interior
+  CHECK(train::interior_mask(mask, 100).sum().item<double>() == 0.0);
+  CHECK(mask.sum().item<double>() == 29.0);  // the input is untouched
+  CHECK_THROWS_AS(train::interior_mask(mask, -1), InputError);
+  CHECK_THROWS_AS(train::interior_mask(torch::ones({5, 6}), 1), InputError);
 }
