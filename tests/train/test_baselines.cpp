@@ -50,6 +50,21 @@ data::LoadedScene scene_with(const torch::Tensor& depth_m, const torch::Tensor& 
   return s;
 }
 
+// A config's optics as evaluate() takes them: the PSF simulator, the sensor,
+// the DOE's starting height [N, N] m and the spectral-upsampling map [L, 3].
+struct EvalOptics {
+  optics::Material material;
+  optics::PsfSimulator sim;
+  optics::SensorModel sensor;
+  torch::Tensor h, w;
+  explicit EvalOptics(const Config& cfg)
+      : material(optics::Material::load(cfg.optics.material)),
+        sim(optics::make_psf_spec(cfg.optics, material, torch::kCPU)),
+        sensor(optics::make_sensor_model(cfg.sensor, sim.spec(), cfg.optics.band_width_m())),
+        h(optics::initial_height(cfg.optics, material, cfg.seed)),
+        w(model::spectral_upsampling_weights(sensor.omega)) {}
+};
+
 }  // namespace
 
 TEST_CASE("baselines: the median inverse depth of the valid training pixels, by hand", "[baselines]") {
@@ -115,11 +130,11 @@ TEST_CASE("baselines: a network that outputs the baselines scores exactly the ba
   const double median = inv[(inv.size() - 1) / 2];
   CHECK(train::median_inverse_depth(train_split) == Approx(median).epsilon(1e-12));
 
-  const auto material = optics::Material::load(cfg.optics.material);
-  const optics::PsfSimulator sim(optics::make_psf_spec(cfg.optics, material, torch::kCPU));
-  const optics::SensorModel sensor = optics::make_sensor_model(cfg.sensor, sim.spec(), bw);
-  const torch::Tensor h = optics::initial_height(cfg.optics, material, cfg.seed);
-  const torch::Tensor w = model::spectral_upsampling_weights(sensor.omega);
+  const EvalOptics optics_(cfg);
+  const auto& sim = optics_.sim;
+  const auto& sensor = optics_.sensor;
+  const torch::Tensor& h = optics_.h;
+  const torch::Tensor& w = optics_.w;
   // The "network" that answers with the baselines themselves.
   auto trivial = [&](const torch::Tensor& x) {
     return std::make_pair(model::spectral_upsample(w, x), train::constant_depth_map(x.narrow(1, 0, 1), median));
@@ -303,21 +318,17 @@ TEST_CASE("evaluation: the interior metrics score the valid pixels beyond the re
   const auto train_split = data::load_split(root.string(), "train", bands, bw, 1);
   const auto test_split = data::load_split(root.string(), "test", bands, bw, 1);
   const double median = train::median_inverse_depth(train_split);
-  const auto material = optics::Material::load(cfg.optics.material);
-  const optics::PsfSimulator sim(optics::make_psf_spec(cfg.optics, material, torch::kCPU));
-  const optics::SensorModel sensor = optics::make_sensor_model(cfg.sensor, sim.spec(), bw);
-  const torch::Tensor h = optics::initial_height(cfg.optics, material, cfg.seed);
-  const torch::Tensor w = model::spectral_upsampling_weights(sensor.omega);
+  const EvalOptics o(cfg);
   // A "network" answering with the baselines inside the 8-px band and garbage in it.
   auto banded = [&](const torch::Tensor& x) {
-    torch::Tensor cube = torch::full({1, w.size(0), x.size(2), x.size(3)}, 5.0);
+    torch::Tensor cube = torch::full({1, o.w.size(0), x.size(2), x.size(3)}, 5.0);
     torch::Tensor depth = torch::full({1, 1, x.size(2), x.size(3)}, 50.0);
     const int64_t H = x.size(2) - 16, W = x.size(3) - 16;
-    cube.narrow(2, 8, H).narrow(3, 8, W).copy_(model::spectral_upsample(w, x).narrow(2, 8, H).narrow(3, 8, W));
+    cube.narrow(2, 8, H).narrow(3, 8, W).copy_(model::spectral_upsample(o.w, x).narrow(2, 8, H).narrow(3, 8, W));
     depth.narrow(2, 8, H).narrow(3, 8, W).fill_(1.0 / median);
     return std::make_pair(cube, depth);
   };
-  const train::EvalResult r = train::evaluate(sim, sensor, h, banded, cfg, "test", (root / "eval").string(), median);
+  const train::EvalResult r = train::evaluate(o.sim, o.sensor, o.h, banded, cfg, "test", (root / "eval").string(), median);
   REQUIRE(r.scenes.size() == 2);
   for (size_t i = 0; i < r.scenes.size(); ++i) {
     const auto& m = r.scenes[i];
@@ -359,10 +370,10 @@ TEST_CASE("evaluation: the interior metrics score the valid pixels beyond the re
   CHECK(md.find("The interior (interior_*: the valid pixels at least 8 px") != std::string::npos);
   // No margin: the interior is the whole valid scene.
   auto trivial = [&](const torch::Tensor& x) {
-    return std::make_pair(model::spectral_upsample(w, x), train::constant_depth_map(x.narrow(1, 0, 1), median));
+    return std::make_pair(model::spectral_upsample(o.w, x), train::constant_depth_map(x.narrow(1, 0, 1), median));
   };
   const train::EvalResult r0 =
-      train::evaluate(sim, sensor, h, trivial, with("data.render_margin_px=0"), "test", (root / "eval0").string(), median);
+      train::evaluate(o.sim, o.sensor, o.h, trivial, with("data.render_margin_px=0"), "test", (root / "eval0").string(), median);
   for (const auto& m : r0.scenes) {
     CHECK(m.interior_hs_psnr_db == m.hs_psnr_db);
     CHECK(m.interior_depth_rmse_m == m.depth_rmse_m);
@@ -370,7 +381,7 @@ TEST_CASE("evaluation: the interior metrics score the valid pixels beyond the re
   }
   // A margin of more than half the scene's height: no interior, no keys, and the report says so.
   const train::EvalResult r20 =
-      train::evaluate(sim, sensor, h, trivial, with("data.render_margin_px=20"), "test", (root / "eval20").string(), median);
+      train::evaluate(o.sim, o.sensor, o.h, trivial, with("data.render_margin_px=20"), "test", (root / "eval20").string(), median);
   CHECK(r20.mean.interior_scenes == 0);
   CHECK(std::isnan(r20.mean.interior_hs_psnr_db));
   CHECK(r20.mean.interior_fraction == 0.0);
