@@ -34,11 +34,10 @@ PatchSampler::PatchSampler(const std::vector<LoadedScene>& scenes, int64_t patch
   if (overhang_px < 0) throw InputError("patch sampler: the overhang must be >= 0");
   if (overhang_px > 0)  // the scenes continued by their replicated edges; candidates in these coordinates
     for (auto& s : scenes_) {
+      namespace F = torch::nn::functional;
+      const int64_t o = overhang_px;
       auto pad = [&](const torch::Tensor& t) {
-        return torch::nn::functional::pad(t.unsqueeze(0), torch::nn::functional::PadFuncOptions(
-                                                              {overhang_px, overhang_px, overhang_px, overhang_px})
-                                                              .mode(torch::kReplicate))
-            .squeeze(0);
+        return F::pad(t.unsqueeze(0), F::PadFuncOptions({o, o, o, o}).mode(torch::kReplicate)).squeeze(0);
       };
       s.scene.spectral = pad(s.scene.spectral), s.scene.depth_m = pad(s.scene.depth_m), s.scene.mask = pad(s.scene.mask);
     }

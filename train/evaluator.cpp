@@ -405,27 +405,20 @@ EvalResult evaluate(const optics::PsfSimulator& psf, const optics::SensorModel& 
           a.baseline_constant_depth_mae_m += m.baseline_constant_depth_mae_m / n;
   }
   a.colorchecker_rmse = cc_count > 0 ? cc_sum / double(cc_count) : -1.0;
-  // The interior's means over the scenes that have one (NaN when none does).
+  // The interior's means over the scenes where each is reported (NaN when none
+  // is): a metric over the scenes that have an interior, interior_fraction
+  // over every scene with a valid pixel.
   a.interior_margin_px = interior_margin;
   for (const auto& m : res.scenes) a.interior_scenes += std::isfinite(m.interior_hs_psnr_db) ? 1 : 0;
-  auto interior_mean = [&](double SceneMetrics::*field) {
-    double sum = 0.0;
-    int64_t k = 0;
-    for (const auto& m : res.scenes)
-      if (std::isfinite(m.*field)) sum += m.*field, ++k;
-    return k > 0 && k == a.interior_scenes ? sum / double(k) : std::nan("");
-  };
   for (double SceneMetrics::*f :
-       {&SceneMetrics::interior_hs_psnr_db, &SceneMetrics::interior_model_base_hs_psnr_db,
+       {&SceneMetrics::interior_fraction, &SceneMetrics::interior_hs_psnr_db, &SceneMetrics::interior_model_base_hs_psnr_db,
         &SceneMetrics::interior_baseline_upsampling_hs_psnr_db, &SceneMetrics::interior_baseline_spectral_wiener_hs_psnr_db,
-        &SceneMetrics::interior_depth_rmse_m, &SceneMetrics::interior_baseline_constant_depth_rmse_m})
-    a.*f = interior_mean(f);
-  if (!res.scenes.empty()) {  // interior_fraction: over every scene with a valid pixel
+        &SceneMetrics::interior_depth_rmse_m, &SceneMetrics::interior_baseline_constant_depth_rmse_m}) {
     double sum = 0.0;
     int64_t k = 0;
     for (const auto& m : res.scenes)
-      if (std::isfinite(m.interior_fraction)) sum += m.interior_fraction, ++k;
-    a.interior_fraction = k > 0 ? sum / double(k) : std::nan("");
+      if (std::isfinite(m.*f)) sum += m.*f, ++k;
+    a.*f = k > 0 ? sum / double(k) : std::nan("");
   }
   viz::write_psf_atlas(out_dir + "/psf_atlas.png", imaging_psf,
                           psf.spec().wavelengths_m, psf.spec().depths_m);
