@@ -355,6 +355,9 @@ ModelConfig parse_model(const JsonReader& m) {
   M.edge_prior_iterations = int_in(m, "edge_prior_iterations", M.edge_prior_iterations, 1, 1000);
   M.edge_prior_rho_start = number_in(m, "edge_prior_rho_start", M.edge_prior_rho_start, '(', 0.0, 1e12, ']');
   M.edge_prior_rho_factor = number_in(m, "edge_prior_rho_factor", M.edge_prior_rho_factor, '(', 1.0, 1e6, ']');
+  M.project_residual = m.get_bool("project_residual", M.project_residual);
+  if (M.project_residual && M.residual != ResidualBase::spectral_wiener)
+    m.fail("project_residual", "needs model.residual = \"spectral_wiener\" (the filter it projects with)");
   if (M.edge_prior_weight > 0 && M.residual != ResidualBase::spectral_wiener)
     m.fail("edge_prior_weight", "needs model.residual = \"spectral_wiener\" (the cube it sharpens)");
   if (M.fuse_defocus_reader && M.residual != ResidualBase::spectral_wiener)

@@ -203,6 +203,11 @@ struct ModelConfig {
   int64_t edge_prior_iterations = 8;
   double edge_prior_rho_start = 1e-3;
   double edge_prior_rho_factor = 2.0;
+  // true (needs residual = "spectral_wiener"): the cube head's residual is
+  // added through (I − W H̄), the part of it the image does not determine
+  // (model/spectral_wiener.h, spectral_wiener_unobserved). Measured:
+  // docs/learning.md, "The residual off what the image fixes".
+  bool project_residual = false;
   // The depth head: 0 = a sigmoid (the paper's); N >= 2 = a soft argmax over N
   // bins of normalised inverse depth (model/unet.h).
   int64_t depth_bins = 0;

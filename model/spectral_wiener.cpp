@@ -146,6 +146,23 @@ SpectralWienerFilter spectral_wiener_filter(const SpectralOtf& otf, const torch:
   return w;
 }
 
+namespace {
+
+// X̂ = S Σ diag(conj K̄) Ωᵀ M⁻¹ Y per frequency, for an image spectrum Y
+// [B, 3, F] (complex128) -> [B, L, F] (complex128): M⁻¹ per frequency, then
+// real GEMMs with Ωᵀ and Σ over the spectrum's real view, float64 throughout.
+torch::Tensor filter_spectrum(const SpectralWienerFilter& w, const torch::Tensor& Y) {
+  const int64_t L = w.Om.size(1), B = Y.size(0), F_ = Y.size(2);
+  const auto Z = w.Minv.solve(Y.select(1, 0), Y.select(1, 1), Y.select(1, 2));
+  const torch::Tensor Zr = torch::view_as_real(torch::stack({Z[0], Z[1], Z[2]}, 0)).reshape({3, B * F_ * 2});  // [3, B·F·2]
+  torch::Tensor u = torch::view_as_complex(torch::matmul(w.Om.t(), Zr).view({L, B, F_, 2}));            // Ωᵀ Z [L, B, F]
+  u = u * w.otf.Kbar.conj().unsqueeze(1);
+  const torch::Tensor xr = torch::matmul(w.Sig, torch::view_as_real(u).reshape({L, B * F_ * 2})).view({L, B, F_, 2});
+  return (torch::view_as_complex(xr) * w.S).transpose(0, 1);
+}
+
+}  // namespace
+
 torch::Tensor apply_spectral_wiener(const SpectralWienerFilter& w, const torch::Tensor& image) {
   const SpectralOtf& o = w.otf;
   const int64_t L = w.Om.size(1), B = image.size(0), H = image.size(2), W = image.size(3), r = o.r;
@@ -154,23 +171,35 @@ torch::Tensor apply_spectral_wiener(const SpectralWienerFilter& w, const torch::
                      "] images, got " + c10::str(image.sizes()));
   const int64_t nh = o.nh, nw = o.nw, nf = nw / 2 + 1, F_ = nh * nf;
   const auto dtype = image.scalar_type() == torch::kFloat64 ? torch::kFloat64 : torch::kFloat32;
-  const auto f64 = torch::TensorOptions().dtype(torch::kFloat64).device(image.device());
-  const torch::Tensor& Om = w.Om;
-  // X̂ = S Σ diag(conj K̄) Ωᵀ M⁻¹ (Y − Ω μ δ_f0): M⁻¹ per frequency, then real
-  // GEMMs with Ωᵀ and Σ over the image's real view; float64 throughout, the
-  // cube returned to the image's precision before the inverse FFT.
-  torch::Tensor y = image.to(f64) - torch::matmul(Om, w.mu).view({1, 3, 1, 1});
+  // X̂ = S Σ diag(conj K̄) Ωᵀ M⁻¹ (Y − Ω μ δ_f0), the cube returned to the
+  // image's precision before the inverse FFT.
+  torch::Tensor y = image.to(torch::kFloat64) - torch::matmul(w.Om, w.mu).view({1, 3, 1, 1});
   y = F::pad(y, F::PadFuncOptions({r, nw - W - r, r, nh - H - r}).mode(torch::kReplicate));
   const torch::Tensor Y = torch::fft::rfft2(y).reshape({B, 3, F_});
-  const auto Z = w.Minv.solve(Y.select(1, 0), Y.select(1, 1), Y.select(1, 2));
-  const torch::Tensor Zr = torch::view_as_real(torch::stack({Z[0], Z[1], Z[2]}, 0)).reshape({3, B * F_ * 2});  // [3, B·F·2]
-  torch::Tensor u = torch::view_as_complex(torch::matmul(Om.t(), Zr).view({L, B, F_, 2}));              // Ωᵀ Z [L, B, F]
-  u = u * o.Kbar.conj().unsqueeze(1);
-  const torch::Tensor xr = torch::matmul(w.Sig, torch::view_as_real(u).reshape({L, B * F_ * 2})).view({L, B, F_, 2});
   const auto cdt = dtype == torch::kFloat64 ? torch::kComplexDouble : torch::kComplexFloat;
-  const torch::Tensor X = (torch::view_as_complex(xr) * w.S).to(cdt).transpose(0, 1).reshape({B, L, nh, nf});
+  const torch::Tensor X = filter_spectrum(w, Y).to(cdt).reshape({B, L, nh, nf});
   const torch::Tensor x = torch::fft::irfft2(X, c10::IntArrayRef{nh, nw});
   return x.narrow(2, r, H).narrow(3, r, W) + w.mu.to(dtype).view({1, L, 1, 1});
+}
+
+torch::Tensor spectral_wiener_unobserved(const SpectralWienerFilter& w, const torch::Tensor& delta) {
+  const SpectralOtf& o = w.otf;
+  const int64_t L = w.Om.size(1);
+  if (delta.dim() != 4 || delta.size(1) != L || delta.size(2) != o.H || delta.size(3) != o.W)
+    throw InputError("spectral_wiener_unobserved: the filter is for [B, " + std::to_string(L) + ", " +
+                     std::to_string(o.H) + ", " + std::to_string(o.W) + "] cubes, got " + c10::str(delta.sizes()));
+  const int64_t B = delta.size(0), H = o.H, W = o.W, r = o.r, nh = o.nh, nw = o.nw, nf = nw / 2 + 1, F_ = nh * nf;
+  // δ is zero beyond the cube (a correction where it is given, none outside),
+  // so it is zero-padded, not edge-replicated as an image is.
+  const torch::Tensor d = F::pad(delta.to(torch::kFloat64), F::PadFuncOptions({r, nw - W - r, r, nh - H - r}));
+  const torch::Tensor D = torch::fft::rfft2(d).reshape({B, L, F_});  // [B, L, F]
+  // H̄ δ: each band through its mean OTF, then the camera response Ω (a real
+  // GEMM over the spectrum's real view).
+  const torch::Tensor Kd = torch::view_as_real(D * o.Kbar.unsqueeze(0)).reshape({B, L, F_ * 2});
+  const torch::Tensor Y = torch::view_as_complex(torch::matmul(w.Om, Kd).view({B, 3, F_, 2}).contiguous());
+  const torch::Tensor X = (D - filter_spectrum(w, Y)).reshape({B, L, nh, nf});
+  const auto dtype = delta.scalar_type() == torch::kFloat64 ? torch::kFloat64 : torch::kFloat32;
+  return torch::fft::irfft2(X, c10::IntArrayRef{nh, nw}).narrow(2, r, H).narrow(3, r, W).to(dtype);
 }
 
 torch::Tensor spectral_wiener_cube(const torch::Tensor& image, const torch::Tensor& psf, const torch::Tensor& omega,

@@ -107,6 +107,19 @@ SpectralWienerFilter spectral_wiener_filter(const SpectralOtf& otf, const torch:
 // image's precision (float64 for float64 images, float32 otherwise).
 torch::Tensor apply_spectral_wiener(const SpectralWienerFilter& filter, const torch::Tensor& image);
 
+// The part of a cube correction δ that the image does not determine:
+//   (I − W H̄) δ,   W = S Σ H̄ᴴ (S · E_z[H_z Σ H_zᴴ] + σ² I)⁻¹,  H̄ = Ω diag(K̄),
+// the filter's estimator W applied to the image H̄ δ the correction would
+// make, taken off it. Where the image carries a band's frequency (K̄ large
+// against the noise) W H̄ returns δ's observed colours and they are removed;
+// where the blur or Ω's three channels lose it (δ in Ω's null space, or K̄ ≈ 0)
+// δ passes. A residual added to the spectral Wiener cube through it cannot
+// move what the image already fixed (model.project_residual). δ [B, L, H, W]
+// of the filter's size, zero beyond it (zero-padded, not edge-replicated) ->
+// [B, L, H, W] in δ's precision (float64 for float64, float32 otherwise);
+// computed in float64. Linear in δ and differentiable in it and the PSFs.
+torch::Tensor spectral_wiener_unobserved(const SpectralWienerFilter& filter, const torch::Tensor& delta);
+
 // The prior's spatial power spectrum S(f) on the real half of an nh × nw DFT
 // grid, flattened [nh·(nw/2+1)], float64: (|f| + 1/max(nh, nw))^−α, mean 1
 // over f ≠ 0, the DC term ×10⁴.

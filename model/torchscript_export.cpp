@@ -425,6 +425,9 @@ torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
   if (net->options().edge_prior.weight > 0)
     throw InputError("export: model.edge_prior_weight > 0 (an evaluation-time experiment, docs/learning.md) has no "
                      "TorchScript form; export with --set model.edge_prior_weight=0");
+  if (net->options().project_residual)
+    throw InputError("export: model.project_residual (an experiment, docs/learning.md) has no TorchScript form; train "
+                     "without it to export");
   torch::jit::Module m("HsdReconstructor");
   torch::NoGradGuard no_grad;
   register_weights(m, net, meta);

@@ -66,6 +66,7 @@ HsdNetImpl::HsdNetImpl(const NetOptions& options, const torch::Tensor& upsamplin
   TORCH_CHECK(opt_.defocus_cost != DefocusCost::spectral || (opt_.residual_spectral_wiener && K > 0),
               "defocus_cost spectral needs the spectral Wiener base and layer_depths_m");
   TORCH_CHECK(!(opt_.edge_prior.weight > 0) || opt_.residual_spectral_wiener, "edge_prior needs the spectral Wiener base");
+  TORCH_CHECK(!opt_.project_residual || opt_.residual_spectral_wiener, "project_residual needs the spectral Wiener base");
   TORCH_CHECK(!opt_.fuse_defocus_reader || (opt_.residual_spectral_wiener && K > 0),
               "fuse_defocus_reader needs the spectral Wiener base and layer_depths_m");
   TORCH_CHECK(!(opt_.residual_preinverse && opt_.residual_spectral_wiener),
@@ -190,6 +191,26 @@ torch::Tensor HsdNetImpl::spectral_wiener(const torch::Tensor& image) const {
     k.filter.reset();
   }
   return cube;
+}
+
+SpectralWienerFilter HsdNetImpl::projection_filter(int64_t H, int64_t W) const {
+  TORCH_CHECK(band_psf_.defined(), "HsdNet: project_residual needs set_band_psf first");
+  TORCH_CHECK(sw_noise_var_.item<double>() > 0, "HsdNet: project_residual's prior was never set");
+  const SpectralPrior prior{sw_mean_, sw_cov_, sw_noise_var_.item<double>()};
+  WienerKeep& k = proj_keep_;
+  const bool keepable = !(torch::GradMode::is_enabled() && band_psf_.requires_grad());
+  if (keepable && k.filter && k.H == H && k.W == W && k.psf.matches(band_psf_) && k.mean.matches(sw_mean_) &&
+      k.cov.matches(sw_cov_) && k.noise.matches(sw_noise_var_) && k.omega.matches(sw_omega_))
+    return *k.filter;
+  SpectralWienerFilter f = spectral_wiener_filter(spectral_otf(band_psf_, H, W), sw_omega_, prior);
+  if (keepable) {
+    k = WienerKeep();
+    k.psf = TensorSnapshot(band_psf_), k.H = H, k.W = W;
+    k.mean = TensorSnapshot(sw_mean_), k.cov = TensorSnapshot(sw_cov_), k.noise = TensorSnapshot(sw_noise_var_);
+    k.omega = TensorSnapshot(sw_omega_);
+    k.filter = std::make_shared<SpectralWienerFilter>(f);
+  }
+  return f;
 }
 
 SpectralOtf HsdNetImpl::kept_otf(int64_t H, int64_t W) const {
@@ -327,6 +348,7 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& p
   } else {
     d = torch::sigmoid(d);
   }
+  if (opt_.project_residual) hs = spectral_wiener_unobserved(projection_filter(H, W), hs);
   out.hs = hs + cube_base;
   const double inv_far = 1.0 / opt_.depth_max_m, inv_near = 1.0 / opt_.depth_min_m;
   out.inv_depth = inv_far + d * (inv_near - inv_far);

@@ -97,6 +97,12 @@ struct NetOptions {
   // (spectral_tv.h), under the same prior (the illuminant reader's too);
   // training mode is unchanged.
   EdgePriorSettings edge_prior;
+  // true (needs residual_spectral_wiener): the cube head's residual δ is
+  // added through (I − W H̄) (spectral_wiener_unobserved): only what the image
+  // does not determine is the network's to add. W is the filter of the
+  // buffers' prior for the network's view (in eval mode too, where
+  // read_illuminant changes the base's prior but not this one).
+  bool project_residual = false;
   // The rendering layers [m] (optics.depths_m, set by net_options): K for the
   // cost volume and the reader's depths.
   std::vector<double> layer_depths_m;
@@ -226,6 +232,11 @@ class HsdNetImpl : public torch::nn::Module {
   };
   static constexpr int64_t kMaxKeptOtfBytes = int64_t(32) << 20;
   mutable WienerKeep sw_keep_;
+  // project_residual's filter, for the network's view (its own size).
+  mutable WienerKeep proj_keep_;
+  // The buffers' filter for H × W cubes, kept in proj_keep_ while the band
+  // PSFs, the prior and the size stay the same (and no gradient needs it).
+  SpectralWienerFilter projection_filter(int64_t H, int64_t W) const;
   // The OTFs of the band PSFs for H × W images (sw_keep_ is theirs), kept or made.
   SpectralOtf kept_otf(int64_t H, int64_t W) const;
   IlluminantMoments illum_;  // read_illuminant

@@ -21,6 +21,7 @@
 #include "model/layered_spectral_wiener.h"
 #include "model/spectral_wiener.h"
 #include "model/tensor_snapshot.h"
+#include "model/torchscript_export.h"
 #include "model/unet.h"
 #include "train/trainer.h"
 
@@ -38,11 +39,15 @@ torch::Tensor delta_psfs(int64_t L, int64_t K, int64_t P, c10::ScalarType dtype)
 // The estimator of model/spectral_wiener.h written out frequency by
 // frequency, independently of its factored products: H_z = Ω diag(K_z(f))
 // built explicitly, E = E_z[H_z Σ H_zᴴ] and H̄ = E_z[H_z] averaged, and
-// W(f) = S Σ H̄ᴴ (S E + σ² I)⁻¹ by a LAPACK solve; float64 throughout.
-torch::Tensor reference_cube(const torch::Tensor& image, const torch::Tensor& psf, const torch::Tensor& omega,
-                             const model::SpectralPrior& prior) {
-  const int64_t L = psf.size(0), P = psf.size(2), r = P / 2;
-  const int64_t H = image.size(2), W = image.size(3);
+// W(f) = S Σ H̄ᴴ (S E + σ² I)⁻¹ by a LAPACK solve; float64 throughout. For an
+// H × W image: W [nh, nf, L, 3] and H̄ [nh, nf, 3, L] on its padded FFT grid.
+struct ReferenceFilter {
+  int64_t r, nh, nw;
+  torch::Tensor Wf, Hbar;
+};
+ReferenceFilter reference_filter(const torch::Tensor& psf, const torch::Tensor& omega, const model::SpectralPrior& prior,
+                                 int64_t H, int64_t W) {
+  const int64_t P = psf.size(2), r = P / 2;
   const int64_t nh = fast_fft_size(H + 2 * r), nw = fast_fft_size(W + 2 * r);
   const auto cd = torch::kComplexDouble;
   torch::Tensor k = F::pad(psf, F::PadFuncOptions({0, nw - P, 0, nh - P}));
@@ -62,12 +67,33 @@ torch::Tensor reference_cube(const torch::Tensor& image, const torch::Tensor& ps
   const torch::Tensor rhs = Sc * torch::matmul(Sig, Hbar.conj().transpose(-1, -2));  // S Σ H̄ᴴ [nh, nf, L, 3]
   // W M = rhs  <=>  Mᴴ Wᴴ = rhsᴴ
   const torch::Tensor Wf = torch::linalg_solve(M.conj().transpose(-1, -2), rhs.conj().transpose(-1, -2)).conj().transpose(-1, -2);
+  return {r, nh, nw, Wf, Hbar};
+}
+
+torch::Tensor reference_cube(const torch::Tensor& image, const torch::Tensor& psf, const torch::Tensor& omega,
+                             const model::SpectralPrior& prior) {
+  const int64_t L = psf.size(0), H = image.size(2), W = image.size(3);
+  const ReferenceFilter f = reference_filter(psf, omega, prior, H, W);
+  const int64_t r = f.r, nh = f.nh, nw = f.nw;
   torch::Tensor y = image - torch::matmul(omega, prior.mean).view({1, 3, 1, 1});
   y = F::pad(y, F::PadFuncOptions({r, nw - W - r, r, nh - H - r}).mode(torch::kReplicate));
   const torch::Tensor Y = torch::fft::rfft2(y).permute({2, 3, 0, 1}).unsqueeze(-1);  // [nh, nf, B, 3, 1]
-  const torch::Tensor X = torch::matmul(Wf.unsqueeze(2), Y).squeeze(-1).permute({2, 3, 0, 1});  // [B, L, nh, nf]
+  const torch::Tensor X = torch::matmul(f.Wf.unsqueeze(2), Y).squeeze(-1).permute({2, 3, 0, 1});  // [B, L, nh, nf]
   const torch::Tensor x = torch::fft::irfft2(X, c10::IntArrayRef{nh, nw});
   return x.narrow(2, r, H).narrow(3, r, W) + prior.mean.view({1, L, 1, 1});
+}
+
+// (I − W H̄) δ with that W and H̄, δ zero-padded; float64.
+torch::Tensor reference_unobserved(const torch::Tensor& delta, const torch::Tensor& psf, const torch::Tensor& omega,
+                                   const model::SpectralPrior& prior) {
+  const int64_t H = delta.size(2), W = delta.size(3);
+  const ReferenceFilter f = reference_filter(psf, omega, prior, H, W);
+  const int64_t r = f.r, nh = f.nh, nw = f.nw;
+  const torch::Tensor WH = torch::matmul(f.Wf, f.Hbar);                               // [nh, nf, L, L]
+  const torch::Tensor d = F::pad(delta, F::PadFuncOptions({r, nw - W - r, r, nh - H - r}));
+  const torch::Tensor D = torch::fft::rfft2(d).permute({2, 3, 0, 1}).unsqueeze(-1);  // [nh, nf, B, L, 1]
+  const torch::Tensor X = (D - torch::matmul(WH.unsqueeze(2), D)).squeeze(-1).permute({2, 3, 0, 1});
+  return torch::fft::irfft2(X, c10::IntArrayRef{nh, nw}).narrow(2, r, H).narrow(3, r, W);
 }
 
 // The filter against reference_cube on the same input: the largest difference over the largest value.
@@ -480,4 +506,104 @@ TEST_CASE("layered spectral Wiener: hat weights in inverse depth pick a layer at
   CHECK_THROWS_AS(model::inverse_depth_layer_weights(d, {1.0, 1.0}), InputError);
   CHECK_THROWS_AS(model::inverse_depth_layer_weights(d, {}), InputError);
   CHECK_THROWS_AS(model::inverse_depth_layer_weights(torch::zeros({1, 1, 2, 2}), layers), InputError);
+}
+
+TEST_CASE("spectral Wiener: the unobserved part of a correction is (I - W Hbar) delta, keeps what the image cannot see and drops what it fixes",
+          "[spectral_wiener]") {
+  torch::manual_seed(31);
+  const int64_t L = 5, K = 3;
+  const torch::Tensor p = test::random_band_psfs(L, K, 7, 0.05);
+  const torch::Tensor omega = torch::rand({3, L}, torch::kFloat64);
+  const model::SpectralPrior prior{torch::rand({L}, torch::kFloat64), test::random_spd(L, 0.01), 1e-4};
+  const torch::Tensor delta = torch::randn({2, L, 10, 13}, torch::kFloat64);
+  const model::SpectralWienerFilter w = model::spectral_wiener_filter(model::spectral_otf(p, 10, 13), omega, prior);
+  const torch::Tensor got = model::spectral_wiener_unobserved(w, delta);
+  const torch::Tensor want = reference_unobserved(delta, p, omega, prior);
+  REQUIRE(got.sizes() == delta.sizes());
+  CHECK((got - want).abs().max().item<double>() < 1e-10 * want.abs().max().item<double>());
+  // It is not the identity, and float32 corrections come back in float32.
+  CHECK((got - delta).abs().max().item<double>() > 1e-2 * delta.abs().max().item<double>());
+  const torch::Tensor got32 = model::spectral_wiener_unobserved(w, delta.to(torch::kFloat32));
+  CHECK(got32.scalar_type() == torch::kFloat32);
+  CHECK((got32.to(torch::kFloat64) - want).abs().max().item<double>() < 1e-5 * want.abs().max().item<double>());
+  CHECK_THROWS_AS(model::spectral_wiener_unobserved(w, delta.narrow(1, 0, L - 1)), InputError);
+
+  // Without blur, a correction in Ω's null space makes no image: it passes untouched.
+  const torch::Tensor flat = delta_psfs(L, K, 7, torch::kFloat64);
+  const model::SpectralWienerFilter w0 = model::spectral_wiener_filter(model::spectral_otf(flat, 10, 13), omega, prior);
+  const torch::Tensor U = std::get<2>(torch::linalg_svd(omega, true));  // rows 3.. span Ω's null space
+  const torch::Tensor v = U.select(0, L - 1);                            // [L], Ω v = 0
+  REQUIRE(torch::matmul(omega, v).abs().max().item<double>() < 1e-12);
+  const torch::Tensor null_delta = v.view({1, L, 1, 1}) * torch::randn({1, 1, 10, 13}, torch::kFloat64);
+  CHECK((model::spectral_wiener_unobserved(w0, null_delta) - null_delta).abs().max().item<double>() < 1e-12);
+
+  // A sharp, invertible camera with almost no noise sees every correction: nothing is left.
+  const int64_t L3 = 3;
+  const torch::Tensor om3 = torch::eye(3, torch::kFloat64) + 0.2 * torch::rand({3, 3}, torch::kFloat64);
+  const model::SpectralPrior p3{torch::rand({L3}, torch::kFloat64), test::random_spd(L3, 0.01), 1e-12};
+  const model::SpectralWienerFilter w3 =
+      model::spectral_wiener_filter(model::spectral_otf(delta_psfs(L3, 2, 5, torch::kFloat64), 9, 11), om3, p3);
+  const torch::Tensor d3 = torch::randn({1, L3, 9, 11}, torch::kFloat64);
+  CHECK(model::spectral_wiener_unobserved(w3, d3).abs().max().item<double>() < 1e-6 * d3.abs().max().item<double>());
+}
+
+TEST_CASE("spectral Wiener: the unobserved part's gradients in the correction and the PSFs match central differences (float64)",
+          "[spectral_wiener]") {
+  torch::manual_seed(15);
+  const int64_t L = 4;
+  const torch::Tensor d = torch::randn({1, L, 9, 11}, torch::kFloat64);
+  const torch::Tensor p = torch::rand({L, 2, 5, 5}, torch::kFloat64) + 0.1;
+  const torch::Tensor omega = torch::rand({3, L}, torch::kFloat64);
+  const model::SpectralPrior prior{torch::rand({L}, torch::kFloat64), test::random_spd(L, 0.01), 1e-3};
+  const torch::Tensor wt = torch::randn({1, L, 9, 11}, torch::kFloat64);
+  auto f = [&](const torch::Tensor& dd, const torch::Tensor& pp) {
+    const torch::Tensor pn = pp / pp.sum({2, 3}, true);
+    const auto w = model::spectral_wiener_filter(model::spectral_otf(pn, 9, 11), omega, prior);
+    return (model::spectral_wiener_unobserved(w, dd) * wt).sum();
+  };
+  for (const auto& g : test::image_psf_gradient_check(f, d, p, 1e-4)) {
+    INFO(g.input << " entry " << g.entry);
+    CHECK(g.autograd == Approx(g.difference).epsilon(1e-5).margin(1e-9));
+  }
+}
+
+TEST_CASE("spectral Wiener: model.project_residual adds the head's residual through (I - W Hbar); refused without the spectral Wiener base",
+          "[spectral_wiener]") {
+  torch::manual_seed(41);
+  // A sharp, invertible 3-band camera with almost no noise: the image fixes
+  // every cube, so a projected residual is nothing, whatever the weights.
+  const int64_t L = 3;
+  model::NetOptions o;
+  o.bands = L, o.base_width = 4, o.levels = 1, o.norm = NormKind::group, o.residual_spectral_wiener = true;
+  const torch::Tensor Om = torch::eye(3) + 0.2 * torch::rand({3, 3});
+  const torch::Tensor sig = test::random_spd(L, 1e-2).to(torch::kFloat32);
+  auto make = [&](bool project) {
+    model::NetOptions oo = o;
+    oo.project_residual = project;
+    torch::manual_seed(7);  // the same weights for both
+    model::HsdNet net(oo, torch::rand({L, 3}));
+    net->set_spectral_prior(torch::rand({L}) * 0.3, sig, 1e-12, Om);
+    net->set_band_psf(delta_psfs(L, 2, 5, torch::kFloat32));
+    net->eval();
+    return net;
+  };
+  model::HsdNet plain = make(false), projected = make(true);
+  const torch::Tensor x = torch::rand({2, 3, 12, 16});
+  torch::NoGradGuard ng;
+  const torch::Tensor base = plain->spectral_wiener(x);
+  const double moved = (plain->forward(x).hs - base).abs().max().item<double>();
+  REQUIRE(moved > 1e-3);  // the unprojected random head changes the cube
+  CHECK((projected->forward(x).hs - base).abs().max().item<double>() < 1e-4 * moved);
+  // Blurred bands: the projection keeps part of the residual, and its filter is kept between calls.
+  model::HsdNet blurred = make(true);
+  blurred->set_band_psf(test::random_band_psfs(L, 2, 5, 0.05).to(torch::kFloat32));
+  const torch::Tensor a = blurred->forward(x).hs, b = blurred->forward(x).hs;
+  CHECK(a.equal(b));
+  CHECK((a - blurred->spectral_wiener(x)).abs().max().item<double>() > 1e-4 * moved);
+  // No TorchScript form: the export refuses it with one clear line.
+  const model::ExportMetadata meta{{450e-9, 550e-9, 650e-9}, {{"camera", "test"}}, {}};
+  CHECK_THROWS_WITH(model::export_torchscript(projected, meta), Catch::Contains("project_residual"));
+  // The config refuses it without the base it projects onto, naming the key.
+  CHECK_THROWS_WITH(load_config(test::source_path("configs/tiny.json"), {"model.project_residual=true", "model.residual=\"image\""}),
+                    Catch::Contains("project_residual"));
 }
