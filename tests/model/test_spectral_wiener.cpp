@@ -567,7 +567,7 @@ TEST_CASE("spectral Wiener: the unobserved part's gradients in the correction an
   }
 }
 
-TEST_CASE("spectral Wiener: model.project_residual adds the head's residual through (I - W Hbar); refused without the spectral Wiener base",
+TEST_CASE("spectral Wiener: model.project_residual adds the head's residual through (I - W Hbar), and is refused without the spectral Wiener base",
           "[spectral_wiener]") {
   torch::manual_seed(41);
   // A sharp, invertible 3-band camera with almost no noise: the image fixes
