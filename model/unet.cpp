@@ -14,6 +14,24 @@ namespace hsd::model {
 
 namespace F = torch::nn::functional;
 
+namespace {
+
+// A kept filter's prior (HsdNetImpl::WienerKeep's snapshots): the same
+// tensors, unwritten since they were remembered.
+template <class Keep>
+bool holds_prior(const Keep& k, const torch::Tensor& mean, const torch::Tensor& cov, const torch::Tensor& noise,
+                 const torch::Tensor& omega) {
+  return k.mean.matches(mean) && k.cov.matches(cov) && k.noise.matches(noise) && k.omega.matches(omega);
+}
+template <class Keep>
+void remember_prior(Keep& k, const torch::Tensor& mean, const torch::Tensor& cov, const torch::Tensor& noise,
+                    const torch::Tensor& omega) {
+  k.mean = TensorSnapshot(mean), k.cov = TensorSnapshot(cov), k.noise = TensorSnapshot(noise);
+  k.omega = TensorSnapshot(omega);
+}
+
+}  // namespace
+
 torch::nn::Sequential HsdNetImpl::block(int64_t in, int64_t out) {
   torch::nn::Sequential s;
   for (int k = 0; k < 2; ++k) {
@@ -178,16 +196,14 @@ torch::Tensor HsdNetImpl::spectral_wiener(const torch::Tensor& image) const {
     }
     return torch::cat(out, 0);
   }
-  const bool same_prior = k.mean.matches(sw_mean_) && k.cov.matches(sw_cov_) && k.noise.matches(sw_noise_var_) &&
-                          k.omega.matches(sw_omega_);
+  const bool same_prior = holds_prior(k, sw_mean_, sw_cov_, sw_noise_var_, sw_omega_);
   if (keepable && same_prior && k.filter) return apply_spectral_wiener(*k.filter, image).to(torch::kFloat32);
   SpectralWienerFilter f = spectral_wiener_filter(spectral_otf(band_psf_, H, W), sw_omega_, prior);
   const torch::Tensor cube = apply_spectral_wiener(f, image).to(torch::kFloat32);
   if (keepable && same_prior) {  // the second use of these inputs: keep the filter
     k.filter = std::make_shared<SpectralWienerFilter>(std::move(f));
   } else if (keepable) {  // the first use of this prior: remember it, keep the filter on the next
-    k.mean = TensorSnapshot(sw_mean_), k.cov = TensorSnapshot(sw_cov_), k.noise = TensorSnapshot(sw_noise_var_);
-    k.omega = TensorSnapshot(sw_omega_);
+    remember_prior(k, sw_mean_, sw_cov_, sw_noise_var_, sw_omega_);
     k.filter.reset();
   }
   return cube;
@@ -199,15 +215,14 @@ SpectralWienerFilter HsdNetImpl::projection_filter(int64_t H, int64_t W) const {
   const SpectralPrior prior{sw_mean_, sw_cov_, sw_noise_var_.item<double>()};
   WienerKeep& k = proj_keep_;
   const bool keepable = !(torch::GradMode::is_enabled() && band_psf_.requires_grad());
-  if (keepable && k.filter && k.H == H && k.W == W && k.psf.matches(band_psf_) && k.mean.matches(sw_mean_) &&
-      k.cov.matches(sw_cov_) && k.noise.matches(sw_noise_var_) && k.omega.matches(sw_omega_))
+  if (keepable && k.filter && k.H == H && k.W == W && k.psf.matches(band_psf_) &&
+      holds_prior(k, sw_mean_, sw_cov_, sw_noise_var_, sw_omega_))
     return *k.filter;
   SpectralWienerFilter f = spectral_wiener_filter(spectral_otf(band_psf_, H, W), sw_omega_, prior);
   if (keepable) {
     k = WienerKeep();
     k.psf = TensorSnapshot(band_psf_), k.H = H, k.W = W;
-    k.mean = TensorSnapshot(sw_mean_), k.cov = TensorSnapshot(sw_cov_), k.noise = TensorSnapshot(sw_noise_var_);
-    k.omega = TensorSnapshot(sw_omega_);
+    remember_prior(k, sw_mean_, sw_cov_, sw_noise_var_, sw_omega_);
     k.filter = std::make_shared<SpectralWienerFilter>(f);
   }
   return f;
