@@ -366,6 +366,7 @@ ModelConfig parse_model(const JsonReader& m) {
     m.fail("defocus_cost", "\"grey\" needs model.preinverse = \"wiener\" (its PSFs are the pre-inversion's)");
   if (M.defocus_cost == DefocusCost::spectral && M.residual != ResidualBase::spectral_wiener)
     m.fail("defocus_cost", "\"spectral\" needs model.residual = \"spectral_wiener\" (its prior and band PSFs)");
+  M.refine_width = int_in(m, "refine_width", M.refine_width, 0, 256, " (0 = one stage)");
   M.depth_bins = int_in(m, "depth_bins", M.depth_bins, 0, 1024, " (0 = a sigmoid head, >= 2 = bins)");
   if (M.depth_bins == 1) m.fail("depth_bins", "must be 0 (a sigmoid head) or >= 2 (bins), got 1");
   if (M.residual == ResidualBase::preinverse && M.preinverse != Preinverse::wiener)

@@ -208,6 +208,10 @@ struct ModelConfig {
   // (model/spectral_wiener.h, spectral_wiener_unobserved). Measured:
   // docs/learning.md, "The residual off what the image fixes".
   bool project_residual = false;
+  // > 0: a second stage refines the cube, a U-Net of this base width reading
+  // the image and the first stage's cube (model/cube_refiner.h); 0 = one
+  // stage. Measured: docs/learning.md, "A second stage for the cube".
+  int64_t refine_width = 0;
   // The depth head: 0 = a sigmoid (the paper's); N >= 2 = a soft argmax over N
   // bins of normalised inverse depth (model/unet.h).
   int64_t depth_bins = 0;

@@ -33,6 +33,7 @@ NetOptions net_options(const Config& cfg) {
   o.learned_spectral_map = cfg.model.spectral_map == SpectralMap::learned;
   o.base_as_input = cfg.model.base_as_input;
   o.project_residual = cfg.model.project_residual;
+  o.refine_width = cfg.model.refine_width;
   o.defocus_cost = cfg.model.defocus_cost;
   o.depth_bins = cfg.model.depth_bins;
   return o;

@@ -428,6 +428,9 @@ torch::jit::Module export_torchscript(HsdNet& net, const ExportMetadata& meta) {
   if (net->options().project_residual)
     throw InputError("export: model.project_residual (an experiment, docs/learning.md) has no TorchScript form; train "
                      "without it to export");
+  if (net->options().refine_width > 0)
+    throw InputError("export: model.refine_width > 0 (a second stage for the cube, an experiment, docs/learning.md) has "
+                     "no TorchScript form; train without it to export");
   torch::jit::Module m("HsdReconstructor");
   torch::NoGradGuard no_grad;
   register_weights(m, net, meta);

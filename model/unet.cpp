@@ -114,6 +114,13 @@ HsdNetImpl::HsdNetImpl(const NetOptions& options, const torch::Tensor& upsamplin
   TORCH_CHECK(opt_.depth_bins == 0 || opt_.depth_bins >= 2, "depth_bins must be 0 (a sigmoid) or >= 2");
   head_depth_ = register_module(
       "head_depth", torch::nn::Conv2d(torch::nn::Conv2dOptions(width[0], std::max<int64_t>(1, opt_.depth_bins), 1)));
+  TORCH_CHECK(opt_.refine_width >= 0, "refine_width must be >= 0");
+  if (opt_.refine_width > 0) {
+    CubeRefinerOptions r;
+    r.in_channels = opt_.in_channels, r.bands = opt_.bands, r.base_width = opt_.refine_width, r.levels = opt_.levels;
+    r.norm = opt_.norm;
+    refiner_ = register_module("refiner", CubeRefiner(r));
+  }
   const torch::Tensor w0 = upsampling_weights.to(torch::kFloat32).clone();
   weights_ = opt_.learned_spectral_map ? register_parameter("upsampling_weights", w0)
                                        : register_buffer("upsampling_weights", w0);
@@ -365,6 +372,11 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& p
   }
   if (opt_.project_residual) hs = spectral_wiener_unobserved(projection_filter(H, W), hs);
   out.hs = hs + cube_base;
+  if (refiner_) {  // the second stage: x₂ = x₁ + R([y, x₁]), R through (I − W H̄) too with project_residual
+    torch::Tensor r = refiner_->forward(image, out.hs);
+    if (opt_.project_residual) r = spectral_wiener_unobserved(projection_filter(H, W), r);
+    out.hs = out.hs + r;
+  }
   const double inv_far = 1.0 / opt_.depth_max_m, inv_near = 1.0 / opt_.depth_min_m;
   out.inv_depth = inv_far + d * (inv_near - inv_far);
   out.depth_m = 1.0 / out.inv_depth;
@@ -390,6 +402,7 @@ void HsdNetImpl::start_at_baselines(double inv_depth_per_m) {
   head_hs_->weight.zero_();
   head_hs_->bias.zero_();
   head_depth_->weight.zero_();
+  if (refiner_) refiner_->start_at_zero();
   const double inv_far = 1.0 / opt_.depth_max_m, inv_near = 1.0 / opt_.depth_min_m;
   const double u = std::clamp((inv_depth_per_m - inv_far) / (inv_near - inv_far), 1e-3, 1.0 - 1e-3);
   if (opt_.depth_bins >= 2) {

@@ -9,7 +9,8 @@
 // by 2×2 max pooling, up by bilinear ×2 then conv. Built only from ops that
 // TorchScript also has, so the exporter can re-express it. Batch norm is
 // synchronised over data-parallel replicas once set_replica_group is called
-// (sync_batch_norm.h); alone it is torch's BatchNorm2d.
+// (sync_batch_norm.h); alone it is torch's BatchNorm2d. With refine_width > 0
+// a second stage adds its residual to the cube (cube_refiner.h).
 // Mixed precision (NetOptions::train_dtype = bfloat16): in training mode the
 // convolutions run in bfloat16 on bfloat16 copies of the float32 weights (the
 // copies are differentiable casts, so gradients, Adam and its state stay
@@ -24,6 +25,7 @@
 #include <torch/torch.h>
 
 #include "common/choices.h"
+#include "model/cube_refiner.h"
 #include "model/replica_group.h"
 #include "model/depth_fusion.h"
 #include "model/illuminant_reader.h"
@@ -103,6 +105,11 @@ struct NetOptions {
   // buffers' prior for the network's view (in eval mode too, where
   // read_illuminant changes the base's prior but not this one).
   bool project_residual = false;
+  // > 0: a second stage refines the cube (cube_refiner.h): a U-Net of this
+  // base width (levels and norm the network's) reads the image and the first
+  // stage's cube and adds its residual to it (through (I − W H̄) as well with
+  // project_residual). 0 = one stage, the paper's network.
+  int64_t refine_width = 0;
   // The rendering layers [m] (optics.depths_m, set by net_options): K for the
   // cost volume and the reader's depths.
   std::vector<double> layer_depths_m;
@@ -197,7 +204,8 @@ class HsdNetImpl : public torch::nn::Module {
   // Residual learning from the trivial answers: zeroes the cube head (the cube
   // is then the spectral upsampling alone) and the depth head's weights, and
   // sets its bias so every pixel's depth is 1 / inv_depth_per_m (clamped into
-  // the head's range). Gradients reach the decoders from the first update on.
+  // the head's range); zeroes the refiner's head too (refine_width > 0).
+  // Gradients reach the decoders from the first update on.
   void start_at_baselines(double inv_depth_per_m);
   // Data-parallel training: batch statistics over all replicas (nullptr: this process's batch).
   void set_replica_group(const std::shared_ptr<ReplicaGroup>& group);
@@ -216,6 +224,7 @@ class HsdNetImpl : public torch::nn::Module {
   std::vector<torch::nn::Conv2d> up_hs_, up_depth_;
   std::vector<torch::nn::Sequential> dec_hs_, dec_depth_;
   torch::nn::Conv2d head_hs_{nullptr}, head_depth_{nullptr};
+  CubeRefiner refiner_{nullptr};  // refine_width > 0
   torch::Tensor weights_;  // buffer [L, C]
   torch::Tensor preinverse_psf_;  // [K, C, P, P] or undefined
   torch::Tensor band_psf_;        // [L, K, P, P] or undefined
