@@ -1,25 +1,12 @@
 #include "model/cube_refiner.h"
 
-#include <algorithm>
 #include <string>
 
-#include "model/sync_batch_norm.h"
+#include "model/conv_block.h"
 
 namespace hsd::model {
 
 namespace F = torch::nn::functional;
-
-torch::nn::Sequential CubeRefinerImpl::block(int64_t in, int64_t out) {
-  torch::nn::Sequential s;
-  for (int k = 0; k < 2; ++k) {
-    s->push_back(torch::nn::Conv2d(
-        torch::nn::Conv2dOptions(k == 0 ? in : out, out, 3).padding(1).bias(opt_.norm == NormKind::none)));
-    if (opt_.norm == NormKind::batch) s->push_back(SyncBatchNorm2d(out));
-    else if (opt_.norm == NormKind::group) s->push_back(torch::nn::GroupNorm(std::min<int64_t>(8, out), out));
-    s->push_back(torch::nn::ReLU(true));
-  }
-  return s;
-}
 
 CubeRefinerImpl::CubeRefinerImpl(const CubeRefinerOptions& options) : opt_(options) {
   TORCH_CHECK(opt_.levels >= 1 && opt_.levels <= 8, "CubeRefiner: levels must be in [1, 8]");
@@ -29,13 +16,13 @@ CubeRefinerImpl::CubeRefinerImpl(const CubeRefinerOptions& options) : opt_(optio
   for (int64_t l = 0; l <= opt_.levels; ++l) width.push_back(opt_.base_width << l);
   for (int64_t l = 0; l < opt_.levels; ++l)
     down_.push_back(register_module("down" + std::to_string(l),
-                                    block(l == 0 ? opt_.in_channels + opt_.bands : width[size_t(l - 1)], width[size_t(l)])));
-  bottom_ = register_module("bottom", block(width[size_t(opt_.levels - 1)], width[size_t(opt_.levels)]));
+                                    conv_block(l == 0 ? opt_.in_channels + opt_.bands : width[size_t(l - 1)], width[size_t(l)], opt_.norm)));
+  bottom_ = register_module("bottom", conv_block(width[size_t(opt_.levels - 1)], width[size_t(opt_.levels)], opt_.norm));
   for (int64_t l = opt_.levels - 1; l >= 0; --l) {
     const std::string s = std::to_string(l);
     const int64_t w = width[size_t(l)], below = width[size_t(l + 1)];
     up_.push_back(register_module("up" + s, torch::nn::Conv2d(torch::nn::Conv2dOptions(below, w, 3).padding(1))));
-    dec_.push_back(register_module("dec" + s, block(2 * w, w)));
+    dec_.push_back(register_module("dec" + s, conv_block(2 * w, w, opt_.norm)));
   }
   head_ = register_module("head", torch::nn::Conv2d(torch::nn::Conv2dOptions(width[0], opt_.bands, 1)));
 }

@@ -8,8 +8,8 @@
 // refiner has no depth output, so its features serve the cube alone (seeing
 // the cube in the first stage, model.base_as_input, cost depth:
 // docs/learning.md). Its head starts at zero (start_at_zero), so a network
-// started at the baselines still scores exactly them. Every block is conv 3×3
-// -> norm -> ReLU, twice, as HsdNet's; inputs whose sides are not multiples of
+// started at the baselines still scores exactly them. Its blocks are
+// HsdNet's (conv_block.h); inputs whose sides are not multiples of
 // 2^levels are padded and the output cropped back. Float32 always (the
 // trainer's bfloat16 covers the first stage only).
 #pragma once
@@ -40,7 +40,6 @@ class CubeRefinerImpl : public torch::nn::Module {
   const CubeRefinerOptions& options() const { return opt_; }
 
  private:
-  torch::nn::Sequential block(int64_t in, int64_t out);
   CubeRefinerOptions opt_;
   std::vector<torch::nn::Sequential> down_, dec_;
   torch::nn::Sequential bottom_{nullptr};

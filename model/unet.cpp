@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "model/conv_block.h"
 #include "model/spectral_upsampling.h"
 #include "model/sync_batch_norm.h"
 #include "model/spectral_wiener.h"
@@ -32,16 +33,7 @@ void remember_prior(Keep& k, const torch::Tensor& mean, const torch::Tensor& cov
 
 }  // namespace
 
-torch::nn::Sequential HsdNetImpl::block(int64_t in, int64_t out) {
-  torch::nn::Sequential s;
-  for (int k = 0; k < 2; ++k) {
-    s->push_back(torch::nn::Conv2d(torch::nn::Conv2dOptions(k == 0 ? in : out, out, 3).padding(1).bias(opt_.norm == NormKind::none)));
-    if (opt_.norm == NormKind::batch) s->push_back(SyncBatchNorm2d(out));
-    else if (opt_.norm == NormKind::group) s->push_back(torch::nn::GroupNorm(std::min<int64_t>(8, out), out));
-    s->push_back(torch::nn::ReLU(true));
-  }
-  return s;
-}
+torch::nn::Sequential HsdNetImpl::block(int64_t in, int64_t out) { return conv_block(in, out, opt_.norm); }
 
 torch::Tensor HsdNetImpl::run_conv(torch::nn::Conv2d& conv, const torch::Tensor& x) const {
   if (x.scalar_type() == conv->weight.scalar_type()) return conv->forward(x);
