@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "model/conv_block.h"
 #include "model/spectral_upsampling.h"
@@ -362,11 +363,14 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& p
   } else {
     d = torch::sigmoid(d);
   }
-  if (opt_.project_residual) hs = spectral_wiener_unobserved(projection_filter(H, W), hs);
+  // One projection filter for both stages (made once per step while the PSFs carry a gradient).
+  std::optional<SpectralWienerFilter> projection;
+  if (opt_.project_residual) projection = projection_filter(H, W);
+  if (projection) hs = spectral_wiener_unobserved(*projection, hs);
   out.hs = hs + cube_base;
   if (refiner_) {  // the second stage: x₂ = x₁ + R([y, x₁]), R through (I − W H̄) too with project_residual
     torch::Tensor r = refiner_->forward(image, out.hs);
-    if (opt_.project_residual) r = spectral_wiener_unobserved(projection_filter(H, W), r);
+    if (projection) r = spectral_wiener_unobserved(*projection, r);
     out.hs = out.hs + r;
   }
   const double inv_far = 1.0 / opt_.depth_max_m, inv_near = 1.0 / opt_.depth_min_m;
