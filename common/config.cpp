@@ -410,6 +410,7 @@ TrainConfig parse_train(const JsonReader& t) {
   T.depth_loss = read_choice(t, "depth_loss", T.depth_loss);
   T.hs_loss = read_choice(t, "hs_loss", T.hs_loss);
   T.depth_ce_weight = number_in(t, "depth_ce_weight", T.depth_ce_weight, '[', 0.0, 1e6, ']');
+  T.first_stage_cube_weight = number_in(t, "first_stage_cube_weight", T.first_stage_cube_weight, '[', 0.0, 1e6, ']');
   for (const auto& [k, v] : {std::pair<const char*, double>{"loss_alpha", T.loss_alpha},
                              {"loss_beta", T.loss_beta}, {"loss_gamma", T.loss_gamma}})
     if (v < 0.0) t.fail(k, "must be >= 0");
@@ -545,6 +546,9 @@ Config parse_config(const Json& resolved, std::vector<std::string>* unlike_defau
   if (c.train.depth_ce_weight > 0.0 && c.model.depth_bins < 2)
     input_error("config key train.depth_ce_weight", "> 0 needs the bins head (model.depth_bins >= 2, got " +
                                                         std::to_string(c.model.depth_bins) + ")");
+  if (c.train.first_stage_cube_weight > 0.0 && c.model.refine_width < 1)
+    input_error("config key train.first_stage_cube_weight", "> 0 needs the cube's second stage (model.refine_width >= 1, got " +
+                                                                std::to_string(c.model.refine_width) + ")");
   r.check_all_used();
   if (unlike_defaults) *unlike_defaults = r.unlike_fallback();
   return c;

@@ -279,6 +279,10 @@ struct TrainConfig {
   // Weight of the depth bins' cross-entropy against two-hot targets (train/loss.h);
   // > 0 needs model.depth_bins >= 2.
   double depth_ce_weight = 0.0;
+  // With the cube's second stage (model.refine_width > 0): weight of the cube
+  // term on the first stage's cube x₁ as well, relative to the final cube's
+  // (deep supervision: α·(e₂ + w·e₁)); 0 = the final cube alone.
+  double first_stage_cube_weight = 0.0;
   int64_t val_every = 100;          // steps between validations (and the last step)
   int64_t val_patches = 8;          // fixed validation patches from the val split
   int64_t checkpoint_every = 100;   // steps between checkpoints (and the last step)

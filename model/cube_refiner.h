@@ -8,7 +8,9 @@
 // refiner has no depth output, so its features serve the cube alone (seeing
 // the cube in the first stage, model.base_as_input, cost depth:
 // docs/learning.md). Its head starts at zero (start_at_zero), so a network
-// started at the baselines still scores exactly them. Its blocks are
+// started at the baselines still scores exactly them. HsdNet reports x₁
+// beside x₂ (NetOutput::first_stage_hs) for train.first_stage_cube_weight,
+// the deep supervision of the first stage. Its blocks are
 // HsdNet's (conv_block.h); inputs whose sides are not multiples of
 // 2^levels are padded and the output cropped back. Float32 always (the
 // trainer's bfloat16 covers the first stage only).

@@ -369,6 +369,7 @@ NetOutput HsdNetImpl::forward(const torch::Tensor& image, const torch::Tensor& p
   if (projection) hs = spectral_wiener_unobserved(*projection, hs);
   out.hs = hs + cube_base;
   if (refiner_) {  // the second stage: x₂ = x₁ + R([y, x₁]), R through (I − W H̄) too with project_residual
+    out.first_stage_hs = out.hs;
     torch::Tensor r = refiner_->forward(image, out.hs);
     if (projection) r = spectral_wiener_unobserved(*projection, r);
     out.hs = out.hs + r;

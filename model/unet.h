@@ -122,6 +122,8 @@ struct NetOptions {
 
 struct NetOutput {
   torch::Tensor hs;          // [B, L, H, W] radiance per band
+  // [B, L, H, W] the first stage's cube x₁ with the second stage on (refine_width > 0); undefined otherwise.
+  torch::Tensor first_stage_hs;
   torch::Tensor inv_depth;   // [B, 1, H, W] 1/m
   torch::Tensor depth_m;     // [B, 1, H, W] metres
   torch::Tensor depth_unit;  // [B, 1, H, W] the depth head's sigmoid output in [0, 1] (for saturation diagnostics)

@@ -22,18 +22,18 @@ torch::Tensor two_hot_depth_targets(const torch::Tensor& inv_true, int64_t bins,
   return (k == a).to(inv_true.scalar_type()) * (1.0 - w) + (k == a + 1).to(inv_true.scalar_type()) * w;
 }
 
+torch::Tensor cube_term(const torch::Tensor& hs_pred, const torch::Tensor& hs_true, HsLoss kind,
+                        const torch::Tensor& mask) {
+  const torch::Tensor e = hs_pred - hs_true;
+  return masked_mean(kind == HsLoss::l2 ? e.square() : e.abs(), mask);
+}
+
 LossTerms reconstruction_loss(const torch::Tensor& hs_pred, const torch::Tensor& hs_true, const torch::Tensor& inv_pred,
                               const torch::Tensor& inv_true, const LossWeights& w, const torch::Tensor& mask,
                               const torch::Tensor& depth_logits) {
   LossTerms t;
-  const torch::Tensor e = hs_pred - hs_true;
-  torch::Tensor hs_term;
-  if (w.hs_loss == HsLoss::l2) {
-    hs_term = masked_mean(e.square(), mask);
-    t.hs = masked_mean(e.detach().abs(), mask);
-  } else {
-    hs_term = t.hs = masked_mean(e.abs(), mask);
-  }
+  const torch::Tensor hs_term = cube_term(hs_pred, hs_true, w.hs_loss, mask);
+  t.hs = w.hs_loss == HsLoss::l1 ? hs_term : masked_mean((hs_pred - hs_true).detach().abs(), mask);
   if (w.depth_loss == DepthLoss::inverse_l1) {
     t.depth = masked_mean((inv_pred - inv_true).abs(), mask);
   } else {

@@ -46,6 +46,11 @@ struct LossTerms {
 // The two-hot targets [B, N, H, W] of inv_true [B, 1, H, W] over N bins (see LossWeights::ce).
 torch::Tensor two_hot_depth_targets(const torch::Tensor& inv_true, int64_t bins, double inv_far, double inv_near);
 
+// The cube term alone, unweighted: mean (Î − I)² for HsLoss::l2, mean |Î − I|
+// for l1, over the valid pixels of mask [B, 1, H, W] (or all). hs_pred, hs_true [B, L, H, W].
+torch::Tensor cube_term(const torch::Tensor& hs_pred, const torch::Tensor& hs_true, HsLoss kind,
+                        const torch::Tensor& mask = {});
+
 // hs_pred, hs_true [B, L, H, W]; inv_pred, inv_true [B, 1, H, W] (1/m); mask [B, 1, H, W] or undefined.
 LossTerms reconstruction_loss(const torch::Tensor& hs_pred, const torch::Tensor& hs_true, const torch::Tensor& inv_pred,
                               const torch::Tensor& inv_true, const LossWeights& w, const torch::Tensor& mask = {},

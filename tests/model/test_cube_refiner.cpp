@@ -64,8 +64,12 @@ TEST_CASE("cube refiner: the cube is the first stage's plus R([image, first stag
   const torch::Tensor r = alone->forward(image, base);
   REQUIRE(r.sizes() == base.sizes());
   REQUIRE(r.abs().max().item<double>() > 1e-3);
-  const torch::Tensor hs = net->forward(image, {}, base).hs;
+  const model::NetOutput two = net->forward(image, {}, base);
+  const torch::Tensor& hs = two.hs;
   CHECK((hs - (base + r)).abs().max().item<double>() < 1e-6);
+  // The first stage's cube is reported beside the final one (train.first_stage_cube_weight).
+  REQUIRE(two.first_stage_hs.defined());
+  CHECK(torch::equal(two.first_stage_hs, base));
   // The refiner reads the cube, not only the image.
   CHECK((alone->forward(image, base + 0.2) - r).abs().max().item<double>() > 1e-4);
   // Depth is the first stage's alone: a refiner changes nothing there.
@@ -76,6 +80,7 @@ TEST_CASE("cube refiner: the cube is the first stage's plus R([image, first stag
   }
   same->eval();
   CHECK(torch::equal(same->forward(image, {}, base).depth_m, net->forward(image, {}, base).depth_m));
+  CHECK_FALSE(same->forward(image, {}, base).first_stage_hs.defined());
 }
 
 TEST_CASE("cube refiner: the loss's gradient reaches both stages and the image", "[model][refiner]") {
@@ -95,9 +100,21 @@ TEST_CASE("cube refiner: the loss's gradient reaches both stages and the image",
   CHECK(second > 0.0);
   REQUIRE(image.grad().defined());
   CHECK(image.grad().abs().sum().item<double>() > 0.0);
+  // A term on the first stage's cube alone (deep supervision) reaches the
+  // first stage and not the refiner: first_stage_hs is x₁, before R.
+  net->zero_grad();
+  net->forward(image, {}, base).first_stage_hs.pow(2).mean().backward();
+  first = 0.0, second = 0.0;
+  for (const auto& p : net->named_parameters()) {
+    if (!p.value().grad().defined()) continue;
+    const double g = p.value().grad().abs().sum().item<double>();
+    (p.key().rfind("refiner.", 0) == 0 ? second : first) += g;
+  }
+  CHECK(first > 0.0);
+  CHECK(second == 0.0);
 }
 
-TEST_CASE("cube refiner: model.refine_width from the config, refused below 0 naming the key, and no export", "[model][refiner]") {
+TEST_CASE("cube refiner: model.refine_width and train.first_stage_cube_weight from the config, refused naming the key, and no export", "[model][refiner]") {
   Config cfg = load_config(test::source_path("configs/tiny.json"), {});
   CHECK(cfg.model.refine_width == 0);
   CHECK(model::net_options(cfg).refine_width == 0);
@@ -105,6 +122,13 @@ TEST_CASE("cube refiner: model.refine_width from the config, refused below 0 nam
   CHECK(model::net_options(cfg).refine_width == 8);
   CHECK_THROWS_WITH(load_config(test::source_path("configs/tiny.json"), {"model.refine_width=-1"}),
                     Catch::Contains("model.refine_width"));
+  // Deep supervision of the first stage needs a second stage, and is >= 0.
+  CHECK(load_config(test::source_path("configs/tiny.json"), {"model.refine_width=8", "train.first_stage_cube_weight=0.5"})
+            .train.first_stage_cube_weight == 0.5);
+  CHECK_THROWS_WITH(load_config(test::source_path("configs/tiny.json"), {"train.first_stage_cube_weight=0.5"}),
+                    Catch::Contains("train.first_stage_cube_weight"));
+  CHECK_THROWS_WITH(load_config(test::source_path("configs/tiny.json"), {"model.refine_width=8", "train.first_stage_cube_weight=-1"}),
+                    Catch::Contains("first_stage_cube_weight"));
   model::HsdNet net(small_options(4), torch::rand({5, 3}));
   const model::ExportMetadata meta{{450e-9, 500e-9, 550e-9, 600e-9, 650e-9}, {{"camera", "test"}}, {}};
   CHECK_THROWS_WITH(model::export_torchscript(net, meta), Catch::Contains("refine_width"));

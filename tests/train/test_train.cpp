@@ -205,6 +205,19 @@ TEST_CASE("train: a step lowers the loss and moves the height map, and a frozen 
   }
 }
 
+TEST_CASE("train: train.first_stage_cube_weight adds w times the cube term on the first stage's cube to the step's loss",
+          "[train][refiner]") {
+  const std::string root = (fs::temp_directory_path() / "hsd_test_train_first_stage").string();
+  const train::Batch b = fixed_batch(3);
+  auto loss_at = [&](const std::string& w) {
+    train::Trainer t(tiny_training(root, {"model.refine_width=4", "train.first_stage_cube_weight=" + w}));
+    return t.step(b, 0).loss;  // the loss before the first update: same weights, same image
+  };
+  const double l0 = loss_at("0"), l1 = loss_at("1"), l2 = loss_at("2");
+  CHECK(l1 > l0);                                       // the term is there
+  CHECK(l2 - l0 == Approx(2.0 * (l1 - l0)).epsilon(1e-4));  // and weighted linearly
+}
+
 TEST_CASE("train: a frozen design's PSFs are computed once, render as computed afresh, and follow a written DOE",
           "[train]") {
   const std::string root = (fs::temp_directory_path() / "hsd_test_train_kept_psf").string();
