@@ -505,11 +505,11 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   timer.lap(&StepProfile::inputs_forward);
   const model::NetOutput out = to_patch(net_->forward(net_view(window), pre_in, base_in));
   timer.lap(&StepProfile::network_forward);
-  LossTerms L = reconstruction_loss(out.hs, centre(batch.radiance), out.inv_depth, 1.0 / centre(batch.depth_m), weights_,
-                                    {}, out.depth_logits);
+  const torch::Tensor truth = centre(batch.radiance);
+  LossTerms L =
+      reconstruction_loss(out.hs, truth, out.inv_depth, 1.0 / centre(batch.depth_m), weights_, {}, out.depth_logits);
   if (cfg_.train.first_stage_cube_weight > 0.0 && out.first_stage_hs.defined())  // deep supervision of x₁
-    L.total = L.total + cfg_.train.first_stage_cube_weight * weights_.alpha *
-                            cube_term(out.first_stage_hs, centre(batch.radiance), weights_.hs_loss);
+    L.total = L.total + cfg_.train.first_stage_cube_weight * weights_.alpha * cube_term(out.first_stage_hs, truth, weights_.hs_loss);
   const std::vector<double> terms = global_loss_terms(L, step);
   timer.lap(&StepProfile::loss);
   opt_->zero_grad();
