@@ -1,6 +1,7 @@
 // hsd_bench dist: data-parallel training against one process, side by side
-// in one run, on the same global batch (--batch patches of --patch px, the
-// config's optics and network):
+// in one run, on the same global batch (--batch patches of --patch px, each
+// rendered with the config's scene margin around it as training renders them
+// and as hsd_bench train does; the config's optics and network):
 //   - one process with all the threads;
 //   - --ranks local ranks (Gloo over loopback, cores / ranks threads each):
 //     the defaults (batch norm over the global batch, PSFs shared out by
@@ -56,7 +57,7 @@ int run_child(Config cfg, const AppArgs& args, int64_t batch, int64_t patch, int
   }
   cfg.train.batch_size = mode == "solo" ? batch / ranks : batch;
   train::Trainer t(cfg, group);
-  const train::Batch b = slice(striped_batch(cfg, batch, patch), rank * (batch / ranks), batch / ranks);
+  const train::Batch b = slice(striped_batch(cfg, batch, patch + 2 * train::render_margin_px(cfg)), rank * (batch / ranks), batch / ranks);
   give_batch_spectral_prior(t, cfg, b);
   int64_t k = 0;
   t.step(b, k++);  // warm-up
@@ -168,6 +169,7 @@ void dist_report(const Config& cfg, int64_t patch, int64_t batch, int64_t ranks,
                   {"ranks", ranks},
                   {"threads_per_rank", rank_threads},
                   {"patch", patch},
+                  {"margin", train::render_margin_px(cfg)},
                   {"batch", batch},
                   {"bands", cfg.optics.wavelengths_nm.size()},
                   {"depths", cfg.optics.depths_m.size()},
@@ -190,7 +192,7 @@ void dist_report(const Config& cfg, int64_t patch, int64_t batch, int64_t ranks,
   char buf[1800];
   std::snprintf(
       buf, sizeof buf,
-      "data-parallel training step: global batch %lld of %lld px, %zu bands, %zu depths, U-Net width %lld x %lld levels; "
+      "data-parallel training step: global batch %lld of %lld px rendered with %lld px of scene around them, %zu bands, %zu depths, U-Net width %lld x %lld levels; "
       "%d cores\n"
       "one process, %d threads                          %7.3f s/step\n"
       "%lld ranks x %d threads (global batch norm,\n"
@@ -199,7 +201,7 @@ void dist_report(const Config& cfg, int64_t patch, int64_t batch, int64_t ranks,
       "%lld ranks x %d threads, batch norm per rank      %7.3f s/step  %.2fx  %4.1f%% in collectives\n"
       "%lld independent processes, a rank's share each   %7.3f s/step  %.2fx  (all PSFs each, no communication)\n"
       "gradient average, %.1f MiB in %lld tensors: %lld bucket(s) %.4f s, one collective per tensor %.4f s (%.1fx)\n",
-      (long long)batch, (long long)patch, cfg.optics.wavelengths_nm.size(), cfg.optics.depths_m.size(),
+      (long long)batch, (long long)patch, (long long)train::render_margin_px(cfg), cfg.optics.wavelengths_nm.size(), cfg.optics.depths_m.size(),
       (long long)cfg.model.base_width, (long long)cfg.model.levels, cores, all_threads, one_s, (long long)ranks, rank_threads,
       sync_s, one_s / sync_s, 100.0 * sync["fraction_in_collectives"].get<double>(), (long long)ranks, nosplit_s,
       one_s / nosplit_s, 100.0 * nosplit["fraction_in_collectives"].get<double>(), (long long)ranks, rank_threads, nosync_s,
@@ -232,7 +234,7 @@ int bench_dist(Config cfg, const AppArgs& args, BenchOutput& out) {
   {
     log::info("one process, " + std::to_string(all_threads) + " threads ...");
     train::Trainer t(cfg);
-    const train::Batch b = striped_batch(cfg, batch, patch);
+    const train::Batch b = striped_batch(cfg, batch, patch + 2 * train::render_margin_px(cfg));
     give_batch_spectral_prior(t, cfg, b);
     int64_t k = 0;
     one_s = median_seconds([&] { t.step(b, k++); }, repeats);

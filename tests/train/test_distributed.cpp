@@ -634,10 +634,16 @@ TEST_CASE("hsd_train: bad distributed settings exit 2 with one line naming the v
   const auto [o5, c5] = test::capture(launcher("--nproc 2 -- " + args + " --set train.batch_size=3 2>&1"));
   CHECK(c5 == 2);
   CHECK_THAT(o5, Catch::Contains("train.batch_size"));
+  // The quick job's rank count (scripts/quick_job.sh) is checked before anything runs.
+  const auto [o7, c7] = test::capture("cd " + std::string(HSD_SOURCE_DIR) + " && HSD_QUICK_RANKS=two bash scripts/quick_job.sh 2>&1");
+  CHECK(c7 == 2);
+  CHECK_THAT(o7, Catch::Contains("HSD_QUICK_RANKS"));
+  CHECK(count_lines(o7) == 1);
 }
 
 TEST_CASE("hsd_bench dist: one process against two ranks and the floor, as one JSON object", "[app][distributed][bench]") {
-  const std::string sets = " --config configs/tiny.json --set model.base_width=4 --set model.levels=2 --patch 16 --repeats 1";
+  const std::string sets =
+      " --config configs/tiny.json --set model.base_width=4 --set model.levels=2 --set data.render_margin_px=4 --patch 16 --repeats 1";
   const auto [out, code] = test::capture("cd " + std::string(HSD_SOURCE_DIR) + " && " + std::string(HSD_BIN_DIR) +
                                          "/hsd_bench dist --json --ranks 2 --batch 2" + sets + " 2>/dev/null");
   INFO(out);
@@ -648,6 +654,11 @@ TEST_CASE("hsd_bench dist: one process against two ranks and the floor, as one J
                         "seconds_per_step_independent", "gradient_average_bucketed_seconds", "gradient_average_per_tensor_seconds"})
     CHECK(j.at(k).get<double>() > 0.0);
   CHECK(j.at("ranks").get<int>() == 2);
+  // Patches rendered with the config's scene margin, as training and hsd_bench train render them.
+  const Config cfg =
+      load_config(test::source_path("configs/tiny.json"), {"model.base_width=4", "model.levels=2", "data.render_margin_px=4"});
+  REQUIRE(train::render_margin_px(cfg) == 4);
+  CHECK(j.at("margin").get<int64_t>() == 4);
   CHECK(j.at("fraction_in_collectives_sync_bn").get<double>() > 0.0);
   // 25-MiB buckets: one collective per dtype (the float32 network, the float64 height map); per tensor: one each.
   CHECK(j.at("gradient_average_bucketed_collectives").get<int>() == 2);
