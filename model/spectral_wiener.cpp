@@ -89,31 +89,6 @@ SpectralOtf spectral_otf(const torch::Tensor& psf, int64_t H, int64_t W) {
   return o;
 }
 
-namespace {
-
-// G = S Σ diag(conj K̄) Ωᵀ M⁻¹ per frequency, [L, 3, F]: the whole filter of
-// a float32 image, formed in float64 from the factors below (so the solves'
-// and the DC weight's decades cancel before rounding) and rounded once to
-// complex64. Ωᵀ M⁻¹ and Σ (·) are real GEMMs over complex real views.
-torch::Tensor filter_gain(const SpectralWienerFilter& w) {
-  const Hermitian3Inverse& m = w.Minv;
-  const int64_t L = w.Om.size(1);
-  auto c = [](const torch::Tensor& t) { return t.to(torch::kComplexDouble); };
-  // M⁻¹ = adj(M) / det M, [3, 3, F]: row c′, column c (as Hermitian3Inverse::solve reads it)
-  const torch::Tensor Mi = torch::stack({torch::stack({c(m.c00), m.c01, m.c02}),
-                                         torch::stack({m.c01.conj(), c(m.c11), m.c12}),
-                                         torch::stack({m.c02.conj(), m.c12.conj(), c(m.c22)})}) *
-                           m.inv_det;
-  const int64_t F_ = Mi.size(2);
-  torch::Tensor g = torch::view_as_complex(
-      torch::matmul(w.Om.t(), torch::view_as_real(Mi).reshape({3, 3 * F_ * 2})).view({L, 3, F_, 2}));  // Ωᵀ M⁻¹
-  g = g * w.otf.Kbar.conj().unsqueeze(1);
-  g = torch::view_as_complex(torch::matmul(w.Sig, torch::view_as_real(g).reshape({L, 3 * F_ * 2})).view({L, 3, F_, 2}));
-  return (g * w.S).to(torch::kComplexFloat);
-}
-
-}  // namespace
-
 SpectralWienerFilter spectral_wiener_filter(const SpectralOtf& otf, const torch::Tensor& omega, const SpectralPrior& prior) {
   const int64_t L = otf.Kf.size(0), K = otf.Kf.size(1);
   if (omega.dim() != 2 || omega.size(0) != 3 || omega.size(1) != L || !prior.mean.defined() ||
@@ -168,7 +143,6 @@ SpectralWienerFilter spectral_wiener_filter(const SpectralOtf& otf, const torch:
   const double s2 = prior.noise_var;
   w.Minv = hermitian3_inverse({S * A00 + s2, S * A11 + s2, S * A22 + s2, S * A01, S * A02, S * A12});
   w.otf.Kf = torch::Tensor();  // applying needs K̄ only
-  w.gain = filter_gain(w);
   return w;
 }
 
@@ -197,24 +171,15 @@ torch::Tensor apply_spectral_wiener(const SpectralWienerFilter& w, const torch::
                      "] images, got " + c10::str(image.sizes()));
   const int64_t nh = o.nh, nw = o.nw, nf = nw / 2 + 1, F_ = nh * nf;
   const auto dtype = image.scalar_type() == torch::kFloat64 ? torch::kFloat64 : torch::kFloat32;
-  if (dtype == torch::kFloat32) {
-    // X̂ = G (Y − Ω μ δ_f0) with the filter's float64-formed gain G in
-    // complex64: three products per band and frequency, in float32 throughout.
-    torch::Tensor y = image.to(dtype) - torch::matmul(w.Om, w.mu).to(dtype).view({1, 3, 1, 1});
-    y = F::pad(y, F::PadFuncOptions({r, nw - W - r, r, nh - H - r}).mode(torch::kReplicate));
-    const torch::Tensor Y = torch::fft::rfft2(y).reshape({B, 3, 1, F_});
-    torch::Tensor X = w.gain.select(1, 0) * Y.select(1, 0);  // [B, L, F]
-    for (int64_t c = 1; c < 3; ++c) X = X + w.gain.select(1, c) * Y.select(1, c);
-    const torch::Tensor x = torch::fft::irfft2(X.reshape({B, L, nh, nf}), c10::IntArrayRef{nh, nw});
-    return x.narrow(2, r, H).narrow(3, r, W) + w.mu.to(dtype).view({1, L, 1, 1});
-  }
-  // X̂ = S Σ diag(conj K̄) Ωᵀ M⁻¹ (Y − Ω μ δ_f0) in float64, frequency by
-  // frequency (the 3×3 solves, then the GEMMs), for float64 images.
+  // X̂ = S Σ diag(conj K̄) Ωᵀ M⁻¹ (Y − Ω μ δ_f0), the cube returned to the
+  // image's precision before the inverse FFT.
   torch::Tensor y = image.to(torch::kFloat64) - torch::matmul(w.Om, w.mu).view({1, 3, 1, 1});
   y = F::pad(y, F::PadFuncOptions({r, nw - W - r, r, nh - H - r}).mode(torch::kReplicate));
   const torch::Tensor Y = torch::fft::rfft2(y).reshape({B, 3, F_});
-  const torch::Tensor x = torch::fft::irfft2(filter_spectrum(w, Y).reshape({B, L, nh, nf}), c10::IntArrayRef{nh, nw});
-  return x.narrow(2, r, H).narrow(3, r, W) + w.mu.view({1, L, 1, 1});
+  const auto cdt = dtype == torch::kFloat64 ? torch::kComplexDouble : torch::kComplexFloat;
+  const torch::Tensor X = filter_spectrum(w, Y).to(cdt).reshape({B, L, nh, nf});
+  const torch::Tensor x = torch::fft::irfft2(X, c10::IntArrayRef{nh, nw});
+  return x.narrow(2, r, H).narrow(3, r, W) + w.mu.to(dtype).view({1, L, 1, 1});
 }
 
 torch::Tensor spectral_wiener_unobserved(const SpectralWienerFilter& w, const torch::Tensor& delta) {

@@ -19,13 +19,10 @@
 // filter (wiener_preinverse.h) cannot. A classical baseline, and the cube
 // head's residual base with model.residual = "spectral_wiener".
 // Borders as in wiener_preinverse.h (edge replication to an FFT-friendly size
-// at least H + P − 1). The filter is computed in float64 (the solves and the
-// DC weight span many decades). A float64 image is filtered in float64,
-// solve by solve; a float32 image through the whole filter per frequency,
-// G = S Σ H̄ᴴ M⁻¹ [L, 3], formed in float64 and rounded once to complex64, in
-// float32 throughout (within 1e-5 of the float64 path relative to the cube's
-// largest value, and its gradients likewise: tests). Differentiable in the
-// image and the PSFs, not in Ω or the prior.
+// at least H + P − 1). The filter is computed and applied in float64 (the
+// solves and the DC weight span many decades); the cube returns to the
+// image's precision before the inverse FFT. Differentiable in the image and
+// the PSFs, not in Ω or the prior.
 #pragma once
 #include <array>
 
@@ -98,19 +95,16 @@ SpectralOtf spectral_otf(const torch::Tensor& psf, int64_t H, int64_t W);
 
 // Everything of the estimator but the image: Ω, μ, Σ (float64), S(f) and the
 // inverse of M = S·E_z[H_z Σ H_zᴴ] + σ² I per frequency (flattened
-// [nh·(nw/2+1)]), and the two composed into one gain per frequency for
-// float32 images. Differentiable in the PSFs through otf.
+// [nh·(nw/2+1)]). Differentiable in the PSFs through otf.
 struct SpectralWienerFilter {
   SpectralOtf otf;  // its Kbar and sizes (Kf is not kept)
   torch::Tensor Om, mu, Sig, S;
   Hermitian3Inverse Minv;
-  torch::Tensor gain;  // G = S Σ diag(conj K̄) Ωᵀ M⁻¹ [L, 3, F], complex64: what float32 images are filtered with
 };
 // otf of L bands, omega [3, L], the prior of L bands (InputError otherwise).
 SpectralWienerFilter spectral_wiener_filter(const SpectralOtf& otf, const torch::Tensor& omega, const SpectralPrior& prior);
 // image [B, 3, H, W] of the filter's size -> the cube [B, L, H, W] in the
-// image's precision (float64 for float64 images, float32 otherwise, through
-// the filter's gain: see the top of this file).
+// image's precision (float64 for float64 images, float32 otherwise).
 torch::Tensor apply_spectral_wiener(const SpectralWienerFilter& filter, const torch::Tensor& image);
 
 // The part of a cube correction δ that the image does not determine:
