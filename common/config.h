@@ -263,6 +263,13 @@ struct TrainConfig {
   // pass is the same).
   bool preinverse_doe_gradient = true;
   bool freeze_doe = false;          // fixed-DOE ablations
+  // The DOE's gradient is taken and its Adam step made on steps 0, N, 2N, ...
+  // only; the steps between train the network alone, on images rendered
+  // through the current design's kept PSFs (no PSF forward, and no backward
+  // into the network's inputs, the sensor image or the PSFs: the frozen
+  // design's step). 1 = every step (the paper's joint training). lr_doe_m is
+  // the rate of the steps that update the DOE, as given.
+  int64_t doe_every = 1;
   // A training checkpoint whose network weights start this run (fine-tuning,
   // e.g. on measured PSFs); "" = the network's own initialisation. Only the
   // network is taken: the DOE, the optimizer state and the step start afresh.

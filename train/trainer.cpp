@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <mutex>
+#include <optional>
 #include <sstream>
 
 #include "common/app.h"
@@ -344,6 +345,11 @@ model::NetOutput Trainer::to_patch(model::NetOutput o) const {
 
 torch::Tensor Trainer::psf_stack() const {
   if (!psf_still_) return optics::imaging_psf_stack(*psf_, doe_.height(), fixed_psf_);
+  return kept_psf_stack();
+}
+
+torch::Tensor Trainer::kept_psf_stack() const {
+  torch::NoGradGuard no_grad;
   const int64_t version = int64_t(doe_.parameter()._version());
   if (!kept_psf_.defined() || version != kept_psf_version_) {
     kept_psf_ = optics::imaging_psf_stack(*psf_, doe_.height(), fixed_psf_);
@@ -416,7 +422,7 @@ StepStats Trainer::set_learning_rates(int64_t step) {
   return st;
 }
 
-Trainer::StepImage Trainer::render_step(const Batch& batch, int64_t step, optics::PsfProvider provider) {
+Trainer::StepImage Trainer::render_step(const Batch& batch, int64_t step, optics::PsfProvider provider, bool kept) {
   const auto gens = image_generators(mix(cfg_.seed ^ 0xA5A5A5A5ull, uint64_t(step)), batch.first_index, batch.radiance.size(0));
   const torch::Tensor design = doe_.height();
   const torch::Tensor h = fixed_psf_ ? design : with_fabrication_noise(design, cfg_, doe_, step);
@@ -429,8 +435,8 @@ Trainer::StepImage Trainer::render_step(const Batch& batch, int64_t step, optics
   // of the provider; with train.fabrication_noise_calibrated it deconvolves
   // with the perturbed PSFs, as a camera calibrated after fabrication.
   StepImage out;
-  if (psf_still_) {  // the kept stack: no PSF work, nothing of it in the graph
-    const torch::Tensor all = psf_stack();
+  if (psf_still_ || (kept && h.is_same(design))) {  // the kept stack: no PSF work, nothing of it in the graph
+    const torch::Tensor all = kept_psf_stack();
     if (net_->options().preinverse_layers > 0) out.rgb_psf = model::camera_rgb_psfs(all, sensor_.omega);
     if (net_->options().residual_spectral_wiener) out.band_psf = all;
     provider = optics::fixed_psf_provider(all);
@@ -461,10 +467,15 @@ std::vector<double> Trainer::global_loss_terms(const LossTerms& L, int64_t step)
 }
 
 void Trainer::apply_gradients(int64_t step) {
-  ranks_->average_gradients_(trained_parameters(), "the gradients of step " + std::to_string(step));
+  const bool doe_step = doe_learns_at(step);
+  ranks_->average_gradients_(doe_step ? trained_parameters() : net_->parameters(),
+                             "the gradients of step " + std::to_string(step));
+  // A step that leaves the DOE be: no gradient, so Adam skips it (no move,
+  // its moments and step count untouched).
+  if (doe_trained_ && !doe_step) doe_.parameter().mutable_grad() = torch::Tensor();
   std::vector<std::pair<std::string, torch::Tensor>> named;
   for (const auto& p : net_->named_parameters()) named.emplace_back("network parameter " + p.key(), p.value());
-  if (doe_trained_) named.emplace_back("the DOE height map", doe_.parameter());
+  if (doe_step) named.emplace_back("the DOE height map", doe_.parameter());
   check_grads(named, step);
   // Only the network's gradient norm is clipped: the DOE's gradient is in loss
   // per metre (~1e6 times larger), and Adam's step into it is already bounded
@@ -484,7 +495,16 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   PhaseTimer timer(prof);
   PsfCuts cuts;
   const optics::PsfProvider& base = fixed_psf_ ? fixed_psf_ : shared_psf_;
-  const StepImage si = render_step(batch, step, prof ? cuts.wrap(base, *psf_) : base);
+  // A step that leaves the DOE be (train.doe_every) renders without a graph
+  // into the optics: the network's inputs carry no gradient, as a frozen
+  // design's do.
+  const bool doe_rests = doe_trained_ && !doe_learns_at(step);
+  StepImage si;
+  {
+    std::optional<torch::NoGradGuard> optics_rest;
+    if (doe_rests) optics_rest.emplace();
+    si = render_step(batch, step, prof ? cuts.wrap(base, *psf_) : base, doe_rests);
+  }
   timer.lap(&StepProfile::sensor_forward);
   if (prof) prof->sensor_forward -= cuts.seconds(), prof->psf_forward += cuts.seconds();
   const torch::Tensor& image = si.image.image;

@@ -76,6 +76,9 @@ class Trainer {
   Batch train_batch(int64_t step) const;
   // One optimisation step with index `step` (0-based; sets the rates, seeds the noise).
   StepStats step(const Batch& batch, int64_t step);
+  // Whether step k takes the DOE's gradient and moves it (a trained DOE and
+  // k a multiple of train.doe_every); the other steps train the network alone.
+  bool doe_learns_at(int64_t step) const { return doe_trained_ && step % cfg_.train.doe_every == 0; }
   // Phase timings of the following steps into *p (nullptr: off, the default).
   void set_profile(StepProfile* p) { profile_ = p; }
   // Loss and metrics on the fixed validation patches (network in eval mode,
@@ -156,7 +159,12 @@ class Trainer {
     torch::Tensor band_psf;  // [L, Z, P, P] of the design, with the gradient; undefined without a spectral Wiener base
   };
   StepStats set_learning_rates(int64_t step);
-  StepImage render_step(const Batch& batch, int64_t step, optics::PsfProvider provider);
+  // kept: render through the current design's kept PSFs (kept_psf_stack)
+  // where no fabrication noise perturbs them (a step that leaves the DOE be).
+  StepImage render_step(const Batch& batch, int64_t step, optics::PsfProvider provider, bool kept = false);
+  // The design's PSF stack [L, Z, P, P] without a graph, computed once per
+  // value of the DOE parameter (keyed on its version) and kept.
+  torch::Tensor kept_psf_stack() const;
   std::vector<double> global_loss_terms(const LossTerms& L, int64_t step);
   void apply_gradients(int64_t step);
   // The pieces of run(): a validation into metrics (pictures and, if

@@ -205,6 +205,36 @@ TEST_CASE("train: a step lowers the loss and moves the height map, and a frozen 
   }
 }
 
+TEST_CASE("train: train.doe_every = 3 moves the DOE on steps 0, 3 and 6 only, and the network at every step",
+          "[train]") {
+  const std::string root = (fs::temp_directory_path() / "hsd_test_train_doe_every").string();
+  train::Trainer t(tiny_training(root, {"train.doe_every=3", "train.lr_doe_m=1e-7"}));
+  const train::Batch b = fixed_batch(3);
+  const torch::Tensor w = t.net()->parameters().front();  // shares the parameter's storage
+  for (int64_t k = 0; k < 7; ++k) {
+    const torch::Tensor h0 = t.height().clone(), w0 = w.clone();
+    t.step(b, k);
+    CHECK(t.doe_learns_at(k) == (k % 3 == 0));
+    // Bit-identical on the resting steps: Adam's momentum does not carry the DOE on.
+    CHECK(t.height().equal(h0) == (k % 3 != 0));
+    CHECK_FALSE(w.equal(w0));
+  }
+}
+
+TEST_CASE("train: a step that leaves the DOE be computes the loss of a joint step from the same state", "[train]") {
+  // After step 0 (a DOE step in both) the two trainers are in the same state;
+  // step 1 rests the DOE in one and not the other, and the loss before its
+  // update (the kept PSFs against PSFs computed in the graph) is the same.
+  const std::string root = (fs::temp_directory_path() / "hsd_test_train_doe_every_loss").string();
+  train::Trainer every(tiny_training(root)), second(tiny_training(root, {"train.doe_every=2"}));
+  const train::Batch b = fixed_batch(3);
+  CHECK(every.step(b, 0).loss == second.step(b, 0).loss);
+  REQUIRE(every.height().equal(second.height()));
+  const double le = every.step(b, 1).loss, ls = second.step(b, 1).loss;
+  CHECK(ls == Approx(le).epsilon(1e-6));
+  CHECK_FALSE(every.height().equal(second.height()));  // only the joint step moved its DOE
+}
+
 TEST_CASE("train: train.first_stage_cube_weight adds w times the cube term on the first stage's cube to the step's loss",
           "[train][refiner]") {
   const std::string root = (fs::temp_directory_path() / "hsd_test_train_first_stage").string();
