@@ -395,6 +395,7 @@ TrainConfig parse_train(const JsonReader& t) {
   T.preinverse_doe_gradient = t.get_bool("preinverse_doe_gradient", T.preinverse_doe_gradient);
   T.freeze_doe = t.get_bool("freeze_doe", T.freeze_doe);
   T.doe_every = int_in(t, "doe_every", T.doe_every, 1, 1000000, " (1 = the DOE learns at every step)");
+  T.doe_adam_beta1 = number_in(t, "doe_adam_beta1", T.doe_adam_beta1, '[', 0.0, 1.0, ')');
   T.init_checkpoint = t.get_string("init_checkpoint", T.init_checkpoint);
   if (auto n = t.optional_child("fabrication_noise")) {
     parse_fabrication_error(*n, T.fabrication_noise);

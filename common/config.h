@@ -270,6 +270,12 @@ struct TrainConfig {
   // design's step). 1 = every step (the paper's joint training). lr_doe_m is
   // the rate of the steps that update the DOE, as given.
   int64_t doe_every = 1;
+  // β₁ of the DOE's Adam (the decay of its first moment, the gradient's
+  // running mean); the network's stays at 0.9. The DOE's gradient is mostly
+  // noise step to step (docs/learning.md): a larger β₁ averages it over
+  // about 1/(1 − β₁) steps before it moves the design, at the same drift per
+  // step for a steady gradient. 0.9 = LibTorch's default, the paper's.
+  double doe_adam_beta1 = 0.9;
   // A training checkpoint whose network weights start this run (fine-tuning,
   // e.g. on measured PSFs); "" = the network's own initialisation. Only the
   // network is taken: the DOE, the optimizer state and the step start afresh.

@@ -165,7 +165,8 @@ Trainer::Trainer(const Config& cfg, std::shared_ptr<DataParallel> group)
     doe_.parameter().set_requires_grad(false);
   } else {
     groups.emplace_back(std::vector<torch::Tensor>{doe_.parameter()},
-                        std::make_unique<torch::optim::AdamOptions>(cfg.train.lr_doe_m));
+                        std::make_unique<torch::optim::AdamOptions>(
+                            torch::optim::AdamOptions(cfg.train.lr_doe_m).betas({cfg.train.doe_adam_beta1, 0.999})));
   }
   opt_ = std::make_unique<torch::optim::Adam>(std::move(groups), torch::optim::AdamOptions(cfg.train.lr_net));
   check_global_batch(cfg, world_);

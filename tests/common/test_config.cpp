@@ -106,6 +106,7 @@ TEST_CASE("bad configs name the key path", "[config]") {
   CHECK_THAT(error_of({"sensor.noise_std=-0.1"}), Catch::Contains("sensor.noise_std"));
   CHECK_THAT(error_of({"train.batch_size=0"}), Catch::Contains("train.batch_size"));
   CHECK_THAT(error_of({"train.doe_every=0"}), Catch::Contains("train.doe_every"));
+  CHECK_THAT(error_of({"train.doe_adam_beta1=1"}), Catch::Contains("train.doe_adam_beta1"));
   CHECK_THAT(error_of({"nosuch"}), Catch::Contains("dotted.key=VALUE"));
   CHECK_THAT(error_of({}, "configs/missing.json"), Catch::Contains("missing.json") && Catch::Contains("not found"));
 }

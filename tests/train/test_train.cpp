@@ -235,6 +235,30 @@ TEST_CASE("train: a step that leaves the DOE be computes the loss of a joint ste
   CHECK_FALSE(every.height().equal(second.height()));  // only the joint step moved its DOE
 }
 
+TEST_CASE("train: train.doe_adam_beta1 sets the DOE's first-moment decay and leaves the network's at 0.9", "[train]") {
+  // From the same state and batch the first step's gradients are the same, so
+  // Adam's first moments after it are (1 - beta1) g: the DOE's scale by
+  // (1 - 0.99) / (1 - 0.9) = 0.1, the network's do not change. Bias correction
+  // makes the first step itself independent of beta1 (m / (1 - beta1) = g).
+  const std::string root = (fs::temp_directory_path() / "hsd_test_train_doe_beta1").string();
+  fs::create_directories(root);
+  train::Trainer plain(tiny_training(root)), slow(tiny_training(root, {"train.doe_adam_beta1=0.99"}));
+  const train::Batch b = fixed_batch(3);
+  CHECK(plain.step(b, 0).loss == slow.step(b, 0).loss);
+  CHECK(torch::allclose(plain.height(), slow.height(), 1e-5, 1e-12));
+  plain.save_checkpoint(root + "/plain.pt", 1);
+  slow.save_checkpoint(root + "/slow.pt", 1);
+  const TensorDict dp = load_tensor_dict(root + "/plain.pt"), ds = load_tensor_dict(root + "/slow.pt");
+  const torch::Tensor mp = dp.at("adam.1.0.exp_avg"), ms = ds.at("adam.1.0.exp_avg");
+  REQUIRE(mp.abs().max().item<double>() > 0);
+  CHECK(torch::allclose(ms, 0.1 * mp, 1e-4, 1e-6 * mp.abs().max().item<double>()));
+  CHECK(dp.at("adam.0.0.exp_avg").equal(ds.at("adam.0.0.exp_avg")));
+  // A second step from there moves the two designs apart.
+  plain.step(b, 1);
+  slow.step(b, 1);
+  CHECK_FALSE(torch::allclose(plain.height(), slow.height(), 1e-6, 1e-12));
+}
+
 TEST_CASE("train: train.first_stage_cube_weight adds w times the cube term on the first stage's cube to the step's loss",
           "[train][refiner]") {
   const std::string root = (fs::temp_directory_path() / "hsd_test_train_first_stage").string();
