@@ -396,6 +396,7 @@ TrainConfig parse_train(const JsonReader& t) {
   T.freeze_doe = t.get_bool("freeze_doe", T.freeze_doe);
   T.doe_every = int_in(t, "doe_every", T.doe_every, 1, 1000000, " (1 = the DOE learns at every step)");
   T.doe_adam_beta1 = number_in(t, "doe_adam_beta1", T.doe_adam_beta1, '[', 0.0, 1.0, ')');
+  T.base_doe_gradient_scale = number_in(t, "base_doe_gradient_scale", T.base_doe_gradient_scale, '[', 0.0, 1e6, ']');
   T.init_checkpoint = t.get_string("init_checkpoint", T.init_checkpoint);
   if (auto n = t.optional_child("fabrication_noise")) {
     parse_fabrication_error(*n, T.fabrication_noise);
@@ -551,6 +552,9 @@ Config parse_config(const Json& resolved, std::vector<std::string>* unlike_defau
   if (c.train.first_stage_cube_weight > 0.0 && c.model.refine_width < 1)
     input_error("config key train.first_stage_cube_weight", "> 0 needs the cube's second stage (model.refine_width >= 1, got " +
                                                                 std::to_string(c.model.refine_width) + ")");
+  if (c.train.base_doe_gradient_scale != 1.0 && c.model.residual != ResidualBase::spectral_wiener)
+    input_error("config key train.base_doe_gradient_scale",
+                "!= 1 needs the spectral Wiener base (model.residual = \"spectral_wiener\"), whose path into the DOE it scales");
   r.check_all_used();
   if (unlike_defaults) *unlike_defaults = r.unlike_fallback();
   return c;

@@ -276,6 +276,15 @@ struct TrainConfig {
   // about 1/(1 − β₁) steps before it moves the design, at the same drift per
   // step for a steady gradient. 0.9 = LibTorch's default, the paper's.
   double doe_adam_beta1 = 0.9;
+  // Scale of the cube term's gradient into the DOE through the spectral Wiener
+  // base (model.residual = "spectral_wiener"): the cube is base + the U-Net's
+  // residual, and the base is the filter applied to the sensor image, so the
+  // cube term reaches the design through the image along two paths. k
+  // multiplies the one through the base (the linear estimate) alone; the
+  // network's parameters do not depend on the base and train as at 1. Lets
+  // the design weight the cube more than the shared encoder does
+  // (docs/learning.md). 1 = the paper's single loss.
+  double base_doe_gradient_scale = 1.0;
   // A training checkpoint whose network weights start this run (fine-tuning,
   // e.g. on measured PSFs); "" = the network's own initialisation. Only the
   // network is taken: the DOE, the optimizer state and the step start afresh.

@@ -27,6 +27,7 @@
 #include "optics/psf_source.h"
 #include "train/baselines.h"
 #include "train/checkpoint.h"
+#include "train/gradient_scale.h"
 #include "train/metrics_log.h"
 #include "train/schedule.h"
 #include "train/shared_psf.h"
@@ -521,7 +522,9 @@ StepStats Trainer::step(const Batch& batch, int64_t step) {
   torch::Tensor base_in;
   if (si.band_psf.defined()) {
     net_->set_band_psf(si.band_psf);
-    base_in = net_view(net_->spectral_wiener(window));
+    // The base's path into the DOE, scaled (train.base_doe_gradient_scale; 1
+    // returns the base itself: the same graph).
+    base_in = scale_gradient(net_view(net_->spectral_wiener(window)), cfg_.train.base_doe_gradient_scale);
   }
   timer.lap(&StepProfile::inputs_forward);
   const model::NetOutput out = to_patch(net_->forward(net_view(window), pre_in, base_in));

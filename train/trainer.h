@@ -4,7 +4,8 @@
 //   -> PSFs of the DOE height h for the occupied layers -> sensor image J + noise
 //   -> network -> (Î, D̂) -> loss(Î, I, D̂, 1/Z) -> Adam step into h and θ.
 // Adam with one parameter group per part (network, DOE; the DOE is left out
-// when frozen; its β₁ is train.doe_adam_beta1), warm-up and cosine decay (schedule.h), the network's gradient
+// when frozen; its β₁ is train.doe_adam_beta1; the cube term's path into it through
+// the spectral Wiener base scaled by train.base_doe_gradient_scale, gradient_scale.h), warm-up and cosine decay (schedule.h), the network's gradient
 // norm clipped, and a NaN/Inf guard that stops with the step and tensor named.
 // Every random choice of step k (patches, lighting, noise) is a function of
 // (seed, k), so a run resumed from a checkpoint repeats the uninterrupted run

@@ -107,6 +107,10 @@ TEST_CASE("bad configs name the key path", "[config]") {
   CHECK_THAT(error_of({"train.batch_size=0"}), Catch::Contains("train.batch_size"));
   CHECK_THAT(error_of({"train.doe_every=0"}), Catch::Contains("train.doe_every"));
   CHECK_THAT(error_of({"train.doe_adam_beta1=1"}), Catch::Contains("train.doe_adam_beta1"));
+  CHECK_THAT(error_of({"train.base_doe_gradient_scale=-1"}), Catch::Contains("train.base_doe_gradient_scale"));
+  CHECK_THAT(error_of({"model.residual=\"image\"", "model.read_illuminant=false", "model.fuse_defocus_reader=false",
+                       "train.base_doe_gradient_scale=2"}),
+             Catch::Contains("train.base_doe_gradient_scale") && Catch::Contains("spectral_wiener"));
   CHECK_THAT(error_of({"nosuch"}), Catch::Contains("dotted.key=VALUE"));
   CHECK_THAT(error_of({}, "configs/missing.json"), Catch::Contains("missing.json") && Catch::Contains("not found"));
 }
