@@ -281,7 +281,7 @@ struct TrainConfig {
   // residual, and the base is the filter applied to the sensor image, so the
   // cube term reaches the design through the image along two paths. k
   // multiplies the one through the base (the linear estimate) alone; the
-  // network's parameters do not depend on the base and train as at 1. Lets
+  // base depends on no network parameter, so the network trains as at 1. Lets
   // the design weight the cube more than the shared encoder does
   // (docs/learning.md). 1 = the paper's single loss.
   double base_doe_gradient_scale = 1.0;
