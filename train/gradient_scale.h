@@ -2,7 +2,7 @@
 // the backward pass. The trainer puts it on the spectral Wiener base's path
 // (train.base_doe_gradient_scale), so that the cube term reaches the DOE
 // through the linear estimate k times as strongly as through the U-Net, while
-// the network's parameters, which the base does not depend on, train as
+// the network's parameters, on which the base does not depend, train as
 // before. Not an equation of the paper: a re-weighting of one path of its
 // Eq. 7 loss's gradient into the height map.
 #pragma once

@@ -12,6 +12,7 @@
 #include <torch/torch.h>
 
 #include <filesystem>
+#include <memory>
 
 #include "common/error.h"
 #include "common/fft_size.h"
@@ -401,78 +402,66 @@ TEST_CASE("spectral Wiener: the network's residual on it starts at it, trains, r
   std::filesystem::remove(ck);
 }
 
-TEST_CASE("spectral Wiener: train.spectral_wiener_doe_gradient = false leaves the forward as it is and cuts only the filter's gradient into the DOE",
-          "[spectral_wiener][train]") {
-  auto trainer_cfg = [](bool through_filter) {
-    return load_config(test::source_path("configs/tiny.json"),
-                       {"data.root=\"unused_no_data_is_loaded\"", "model.base_width=4", "model.levels=2",
-                        "train.batch_size=2", "train.warmup_steps=0", "train.decay=none", "data.patch_size_px=16",
-                        "model.residual=\"spectral_wiener\"",
-                        std::string("train.spectral_wiener_doe_gradient=") + (through_filter ? "true" : "false")});
-  };
-  train::Trainer a(trainer_cfg(true)), b(trainer_cfg(false));
-  const int64_t L = int64_t(a.psf().spec().wavelengths_m.size());
+// Trainers on tiny.json with the spectral Wiener residual, one per set of
+// extra overrides, all with the same spectral prior, heads at the baselines
+// and the first's network weights (so the same forward); and a batch for them.
+static std::vector<std::unique_ptr<train::Trainer>> spectral_wiener_trainers(const std::vector<std::string>& extra) {
+  std::vector<std::unique_ptr<train::Trainer>> out;
+  for (const std::string& e : extra)
+    out.push_back(std::make_unique<train::Trainer>(load_config(
+        test::source_path("configs/tiny.json"),
+        {"data.root=\"unused_no_data_is_loaded\"", "model.base_width=4", "model.levels=2", "train.batch_size=2",
+         "train.warmup_steps=0", "train.decay=none", "data.patch_size_px=16", "model.residual=\"spectral_wiener\"", e})));
+  const int64_t L = int64_t(out[0]->psf().spec().wavelengths_m.size());
   torch::manual_seed(15);
   const torch::Tensor mu = torch::rand({L}) * 0.3, sig = test::random_spd(L, 1e-3).to(torch::kFloat32);
-  for (train::Trainer* t : {&a, &b}) {
+  for (auto& t : out) {
     t->net()->set_spectral_prior(mu, sig, 1e-5, t->sensor().omega);
     t->net()->start_at_baselines(1.0);
   }
-  {  // the same start (the config's seed), so the same forward
-    torch::NoGradGuard ng;
-    for (const auto& p : a.net()->named_parameters()) b.net()->named_parameters()[p.key()].copy_(p.value());
-  }
+  torch::NoGradGuard ng;
+  for (size_t i = 1; i < out.size(); ++i)
+    for (const auto& p : out[0]->net()->named_parameters()) out[i]->net()->named_parameters()[p.key()].copy_(p.value());
+  return out;
+}
+
+static train::Batch spectral_wiener_batch(const train::Trainer& t) {
+  const int64_t L = int64_t(t.psf().spec().wavelengths_m.size());
   torch::manual_seed(5);
   train::Batch bt;
   bt.radiance = torch::rand({2, L, 16, 16});
   bt.depth_m = 0.5 + torch::rand({2, 1, 16, 16});
-  test::check_doe_gradient_cut(a, b, bt);
+  return bt;
+}
+
+TEST_CASE("spectral Wiener: train.spectral_wiener_doe_gradient = false leaves the forward as it is and cuts only the filter's gradient into the DOE",
+          "[spectral_wiener][train]") {
+  auto t = spectral_wiener_trainers({"train.spectral_wiener_doe_gradient=true", "train.spectral_wiener_doe_gradient=false"});
+  test::check_doe_gradient_cut(*t[0], *t[1], spectral_wiener_batch(*t[0]));
 }
 
 TEST_CASE("spectral Wiener: train.base_doe_gradient_scale = k scales the base's path into the DOE by k and leaves the network's gradient",
           "[spectral_wiener][train]") {
   // The DOE's gradient is g_other + k g_base: linear in k, with g_base != 0;
-  // the network's parameters do not depend on the base, so their gradients
-  // are the same at every k; the forward (the loss) is too.
-  auto trainer_cfg = [](const std::string& k) {
-    return load_config(test::source_path("configs/tiny.json"),
-                       {"data.root=\"unused_no_data_is_loaded\"", "model.base_width=4", "model.levels=2",
-                        "train.batch_size=2", "train.warmup_steps=0", "train.decay=none", "data.patch_size_px=16",
-                        "model.residual=\"spectral_wiener\"", "train.base_doe_gradient_scale=" + k});
-  };
-  train::Trainer t0(trainer_cfg("0")), t1(trainer_cfg("1")), t2(trainer_cfg("2"));
-  const int64_t L = int64_t(t0.psf().spec().wavelengths_m.size());
-  torch::manual_seed(15);
-  const torch::Tensor mu = torch::rand({L}) * 0.3, sig = test::random_spd(L, 1e-3).to(torch::kFloat32);
-  for (train::Trainer* t : {&t0, &t1, &t2}) {
-    t->net()->set_spectral_prior(mu, sig, 1e-5, t->sensor().omega);
-    t->net()->start_at_baselines(1.0);
-  }
-  {
-    torch::NoGradGuard ng;
-    for (const auto& p : t0.net()->named_parameters()) {
-      t1.net()->named_parameters()[p.key()].copy_(p.value());
-      t2.net()->named_parameters()[p.key()].copy_(p.value());
-    }
-  }
-  torch::manual_seed(5);
-  train::Batch bt;
-  bt.radiance = torch::rand({2, L, 16, 16});
-  bt.depth_m = 0.5 + torch::rand({2, 1, 16, 16});
-  const double l0 = t0.step(bt, 0).loss, l1 = t1.step(bt, 0).loss, l2 = t2.step(bt, 0).loss;
+  // the base depends on no network parameter, so the network's gradients are
+  // the same at every k; the forward (the loss) is too.
+  auto t = spectral_wiener_trainers({"train.base_doe_gradient_scale=0", "train.base_doe_gradient_scale=1",
+                                     "train.base_doe_gradient_scale=2"});
+  const train::Batch bt = spectral_wiener_batch(*t[0]);
+  const double l0 = t[0]->step(bt, 0).loss, l1 = t[1]->step(bt, 0).loss, l2 = t[2]->step(bt, 0).loss;
   CHECK(l0 == l1);
   CHECK(l2 == l1);
-  const torch::Tensor g0 = t0.doe().parameter().grad().to(torch::kFloat64),
-                      g1 = t1.doe().parameter().grad().to(torch::kFloat64),
-                      g2 = t2.doe().parameter().grad().to(torch::kFloat64);
+  const torch::Tensor g0 = t[0]->doe().parameter().grad().to(torch::kFloat64),
+                      g1 = t[1]->doe().parameter().grad().to(torch::kFloat64),
+                      g2 = t[2]->doe().parameter().grad().to(torch::kFloat64);
   const torch::Tensor base_path = g1 - g0;
   const double size = g1.abs().max().item<double>();
   INFO("the base's path: " << base_path.abs().max().item<double>() << " of " << size);
   CHECK(base_path.abs().max().item<double>() > 1e-3 * size);
   CHECK(((g2 - g1) - base_path).abs().max().item<double>() < 1e-2 * base_path.abs().max().item<double>());
-  for (const auto& p : t0.net()->named_parameters()) {
+  for (const auto& p : t[0]->net()->named_parameters()) {
     INFO(p.key());
-    const torch::Tensor a = p.value().grad(), b = t2.net()->named_parameters()[p.key()].grad();
+    const torch::Tensor a = p.value().grad(), b = t[2]->net()->named_parameters()[p.key()].grad();
     REQUIRE(a.defined() == b.defined());
     if (a.defined()) CHECK(a.equal(b));
   }
