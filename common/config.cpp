@@ -339,6 +339,7 @@ ModelConfig parse_model(const JsonReader& m) {
   M.spectral_map = read_choice(m, "spectral_map", M.spectral_map);
   M.base_as_input = m.get_bool("base_as_input", M.base_as_input);
   M.defocus_cost = read_choice(m, "defocus_cost", M.defocus_cost);
+  M.defocus_cost_gradient = m.get_bool("defocus_cost_gradient", M.defocus_cost_gradient);
   M.fuse_defocus_reader = m.get_bool("fuse_defocus_reader", M.fuse_defocus_reader);
   M.fusion_reader_box_px = int_in(m, "fusion_reader_box_px", M.fusion_reader_box_px, 1, 255);
   if (M.fusion_reader_box_px % 2 == 0)
@@ -366,6 +367,8 @@ ModelConfig parse_model(const JsonReader& m) {
     m.fail("defocus_cost", "\"grey\" needs model.preinverse = \"wiener\" (its PSFs are the pre-inversion's)");
   if (M.defocus_cost == DefocusCost::spectral && M.residual != ResidualBase::spectral_wiener)
     m.fail("defocus_cost", "\"spectral\" needs model.residual = \"spectral_wiener\" (its prior and band PSFs)");
+  if (M.defocus_cost_gradient && M.defocus_cost != DefocusCost::spectral)
+    m.fail("defocus_cost_gradient", "needs model.defocus_cost = \"spectral\" (the cost volume it lets the gradient through)");
   M.refine_width = int_in(m, "refine_width", M.refine_width, 0, 256, " (0 = one stage)");
   M.depth_bins = int_in(m, "depth_bins", M.depth_bins, 0, 1024, " (0 = a sigmoid head, >= 2 = bins)");
   if (M.depth_bins == 1) m.fail("depth_bins", "must be 0 (a sigmoid head) or >= 2 (bins), got 1");

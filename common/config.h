@@ -169,6 +169,11 @@ struct ModelConfig {
   // "wiener" (its RGB PSFs), "spectral" needs residual = "spectral_wiener" (its
   // prior and band PSFs). Measured: docs/learning.md, "A classical reader of the cue".
   DefocusCost defocus_cost = DefocusCost::none;
+  // true (needs defocus_cost = "spectral"): that cost volume is differentiable
+  // in the sensor image, so the depth term reaches the DOE through it as
+  // through the image (not through its PSFs); false: no gradient through it.
+  // Measured: docs/learning.md, "The reader's costs as input at the cube's end".
+  bool defocus_cost_gradient = false;
   // true (needs residual = "spectral_wiener"): in evaluation (and in the
   // exported reconstructor) the depth output fuses the network's depth with
   // the spectral depth-from-defocus reader's (model/depth_fusion.h); training

@@ -69,17 +69,18 @@ torch::Tensor spectral_defocus_cost_volume(const torch::Tensor& image, const tor
   check_spectral_inputs("spectral_defocus_cost_volume", image, psf, omega, prior);
   const int64_t L = psf.size(0), K = psf.size(1), P = psf.size(2), r = P / 2;
   if (window_px < 1 || window_px % 2 == 0) throw InputError("spectral_defocus_cost_volume: the window must be odd and >= 1");
-  torch::NoGradGuard no_grad;
+  // The image is the only input a gradient reaches: the PSFs, the camera and
+  // the prior enter as constants (the log-determinant is a number).
   const int64_t B = image.size(0), H = image.size(2), W = image.size(3);
   const int64_t nh = fast_fft_size(H + 2 * r), nw = fast_fft_size(W + 2 * r), nf = nw / 2 + 1, F_ = nh * nf;
   const auto dtype = image.scalar_type() == torch::kFloat64 ? torch::kFloat64 : torch::kFloat32;
   const auto f64 = torch::TensorOptions().dtype(torch::kFloat64).device(image.device());
-  const torch::Tensor Om = omega.to(f64), mu = prior.mean.to(f64).reshape({L});
+  const torch::Tensor Om = omega.detach().to(f64), mu = prior.mean.detach().to(f64).reshape({L});
   // Σ = V Vᵀ, so H Σ Hᴴ = Q Qᴴ with Q = Ω diag(K) V [3, R] (spectral_wiener_factor's rows Ω_cλ V_λj).
-  const torch::Tensor Vq = spectral_wiener_factor(Om, prior.covariance.to(f64));  // [3R, L]
+  const torch::Tensor Vq = spectral_wiener_factor(Om, prior.covariance.detach().to(f64));  // [3R, L]
   const int64_t R = Vq.size(0) / 3;
   // Band OTFs with the PSF's centre at (0, 0): [L, K, F].
-  const torch::Tensor Kf = torch::fft::rfft2(centred_padded_psf(psf.to(f64), nh, nw)).reshape({L, K, F_});
+  const torch::Tensor Kf = torch::fft::rfft2(centred_padded_psf(psf.detach().to(f64), nh, nw)).reshape({L, K, F_});
   const torch::Tensor S = spectral_wiener_psd(nh, nw, prior.psd_exponent, image.device());  // [F]
   const double s2 = prior.noise_var;
   // Full-grid means from the real half: its columns 1 .. ceil(nw/2) − 1 stand for two.

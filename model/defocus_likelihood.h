@@ -52,7 +52,10 @@ torch::Tensor defocus_cost_volume(const torch::Tensor& image, const torch::Tenso
 // out over the box,
 //   ℓ_k = 3 log( (1/3n) Σ_x Σ_c |w_k,c(x)|² ) + mean_f log det M_k(f).
 // image [B, 3, H, W], psf [L, K, P, P] (band PSFs, P odd), omega [3, L],
-// window_px odd -> ℓ [B, K, H, W], float32 (float64 in for float64 out). No gradient.
+// window_px odd -> ℓ [B, K, H, W], float32 (float64 in for float64 out).
+// Differentiable in the image alone: the PSFs, the camera and the prior enter
+// as constants (detached), so no gradient reaches them through the whitening
+// or the log-determinant. A caller that wants none passes a detached image.
 torch::Tensor spectral_defocus_cost_volume(const torch::Tensor& image, const torch::Tensor& psf, const torch::Tensor& omega,
                                            const SpectralPrior& prior, int64_t window_px);
 

@@ -35,6 +35,7 @@ NetOptions net_options(const Config& cfg) {
   o.project_residual = cfg.model.project_residual;
   o.refine_width = cfg.model.refine_width;
   o.defocus_cost = cfg.model.defocus_cost;
+  o.defocus_cost_gradient = cfg.model.defocus_cost_gradient;
   o.depth_bins = cfg.model.depth_bins;
   return o;
 }

@@ -254,19 +254,24 @@ torch::Tensor HsdNetImpl::preinverse(const torch::Tensor& image) const {
 }
 
 torch::Tensor HsdNetImpl::defocus_input(const torch::Tensor& image) const {
+  if (opt_.defocus_cost == DefocusCost::spectral && opt_.defocus_cost_gradient) {
+    // Differentiable in the image (not in the PSFs): the depth term reaches
+    // the DOE through the cost volume as through the image.
+    const torch::Tensor cost = spectral_reader_cost(image, kDefocusInputWindowPx);
+    return (cost - cost.mean(1, true)).to(image.scalar_type());
+  }
   torch::NoGradGuard no_grad;
   torch::Tensor cost;
   if (opt_.defocus_cost == DefocusCost::grey) {
     TORCH_CHECK(preinverse_psf_.defined(), "HsdNet: the grey cost volume needs set_preinverse_psf first");
     cost = defocus_cost_volume(image.detach(), preinverse_psf_.detach(), DefocusModel());
   } else {
-    cost = spectral_reader_cost(image, kDefocusInputWindowPx);
+    cost = spectral_reader_cost(image.detach(), kDefocusInputWindowPx);
   }
   return (cost - cost.mean(1, true)).to(image.scalar_type());
 }
 
 torch::Tensor HsdNetImpl::spectral_reader_cost(const torch::Tensor& image, int64_t window_px) const {
-  torch::NoGradGuard no_grad;
   TORCH_CHECK(band_psf_.defined() && sw_noise_var_.item<double>() > 0,
               "HsdNet: the spectral depth-from-defocus reader needs set_band_psf and set_spectral_prior first");
   TORCH_CHECK(band_psf_.size(1) == int64_t(opt_.layer_depths_m.size()), "HsdNet: the band PSFs have ", band_psf_.size(1),
@@ -275,12 +280,12 @@ torch::Tensor HsdNetImpl::spectral_reader_cost(const torch::Tensor& image, int64
   // fused depth worse on the quick config's test split, the light known too
   // (docs/learning.md, "Reading the light").
   const SpectralPrior prior{sw_mean_, sw_cov_, sw_noise_var_.item<double>()};
-  return spectral_defocus_cost_volume(image.detach(), band_psf_.detach(), sw_omega_, prior, window_px);
+  return spectral_defocus_cost_volume(image, band_psf_, sw_omega_, prior, window_px);  // the PSFs enter as constants
 }
 
 torch::Tensor HsdNetImpl::fusion_reader_cost(const torch::Tensor& image) const {
   torch::NoGradGuard no_grad;
-  const torch::Tensor c = spectral_reader_cost(image, opt_.fusion.reader_box_px).to(torch::kFloat32);
+  const torch::Tensor c = spectral_reader_cost(image.detach(), opt_.fusion.reader_box_px).to(torch::kFloat32);
   return c - c.mean(1, true);
 }
 

@@ -80,6 +80,10 @@ struct NetOptions {
   // prior and band PSFs (needs residual_spectral_wiener; a 15-px box).
   DefocusCost defocus_cost = DefocusCost::none;
   // (The spectral cost volume's box: kDefocusInputWindowPx; K = layer_depths_m.size().)
+  // true (spectral only): the cost volume is differentiable in the image, so
+  // the loss reaches the DOE through it as through the image (never through
+  // its PSFs); false: no gradient through it at all.
+  bool defocus_cost_gradient = false;
   // true (needs residual_spectral_wiener and layer_depths_m): in eval mode the
   // depth is the head's and the spectral reader's averaged in metres, the
   // reader's costs and the average filtered edge-aware under the cube's
@@ -163,7 +167,8 @@ class HsdNetImpl : public torch::nn::Module {
   void set_spectral_prior(const torch::Tensor& mean, const torch::Tensor& covariance, double noise_var,
                           const torch::Tensor& omega);
   void set_band_psf(const torch::Tensor& psf);
-  // The classical cost volume input (NetOptions::defocus_cost): image [B, 3, H, W] -> [B, K, H, W], no gradient.
+  // The classical cost volume input (NetOptions::defocus_cost): image [B, 3, H, W] -> [B, K, H, W];
+  // no gradient, except through the image with defocus_cost_gradient.
   torch::Tensor defocus_input(const torch::Tensor& image) const;
   // The fused reader's costs (NetOptions::fuse_defocus_reader): image [B, 3, H, W] ->
   // [B, K, H, W] float32, the spectral cost volume over fusion.reader_box_px
@@ -214,7 +219,8 @@ class HsdNetImpl : public torch::nn::Module {
 
  private:
   // The spectral reader's cost volume with the network's band PSFs and prior
-  // (checks they are set and have K = layer_depths_m.size() depths): [B, K, H, W], no gradient.
+  // (checks they are set and have K = layer_depths_m.size() depths): [B, K, H, W],
+  // differentiable in the image alone (callers that want no gradient pass it detached).
   torch::Tensor spectral_reader_cost(const torch::Tensor& image, int64_t window_px) const;
   torch::nn::Sequential block(int64_t in, int64_t out);
   // One block or layer in the dtype of x (float32 or bfloat16, see above).

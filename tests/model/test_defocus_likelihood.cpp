@@ -10,7 +10,9 @@
 
 #include <torch/torch.h>
 
+#include <array>
 #include <cmath>
+#include <vector>
 
 #include "common/config.h"
 #include "common/error.h"
@@ -371,4 +373,75 @@ TEST_CASE("defocus likelihood: model.fuse_defocus_reader fuses the head's depth 
   // it reads the layers' mean depth, not the nearest layer.
   plain->set_band_psf((psf / psf.sum({2, 3}, true)).narrow(1, 0, 1).expand({4, 2, 9, 9}).contiguous());
   CHECK((plain->reader_depth(x, model::fusion_guide(pe.hs)) - 1.25).abs().max().item<double>() < 1e-6);
+}
+
+TEST_CASE("spectral defocus likelihood: differentiable in the image (central differences, float64), the PSFs and prior constants",
+          "[defocus][gradient]") {
+  torch::manual_seed(25);
+  const int64_t L = 4, K = 3, P = 5, H = 10, W = 9;
+  const torch::Tensor psf = random_psfs(L, K, P).requires_grad_(true), omega = torch::rand({3, L}, torch::kFloat64);
+  const model::SpectralPrior prior = random_prior(L);
+  const torch::Tensor img = (0.2 + torch::rand({1, 3, H, W}, torch::kFloat64)).requires_grad_(true);
+  // A scalar of every layer's cost with uneven weights, so a layer's sign matters.
+  const torch::Tensor wts = torch::randn({1, K, H, W}, torch::kFloat64);
+  auto objective = [&](const torch::Tensor& x) { return (model::spectral_defocus_cost_volume(x, psf, omega, prior, 5) * wts).sum(); };
+  const torch::Tensor f = objective(img);
+  REQUIRE(f.requires_grad());
+  const torch::Tensor g = torch::autograd::grad({f}, {img}, {}, /*retain_graph=*/false, /*create_graph=*/false,
+                                                /*allow_unused=*/false)[0];
+  CHECK(g.abs().max().item<double>() > 0);
+  CHECK(!psf.grad().defined());  // the PSFs enter as constants
+  torch::NoGradGuard ng;
+  const double h = 1e-6;
+  const std::vector<std::array<int64_t, 3>> pixels = {{0, 0, 0}, {1, 4, 3}, {2, 9, 8}, {0, 5, 7}, {2, 2, 1}};
+  for (const auto& [c, i, j] : pixels) {
+    torch::Tensor up = img.detach().clone(), dn = img.detach().clone();
+    up[0][c][i][j] += h;
+    dn[0][c][i][j] -= h;
+    const double fd = (objective(up) - objective(dn)).item<double>() / (2 * h);
+    const double ad = g[0][c][i][j].item<double>();
+    INFO("pixel " << c << "," << i << "," << j << ": autograd " << ad << ", central difference " << fd);
+    CHECK(std::abs(ad - fd) <= 1e-6 * std::max(1.0, std::abs(fd)));
+  }
+}
+
+TEST_CASE("defocus likelihood: model.defocus_cost_gradient lets the loss reach the image through the spectral cost volume, and "
+          "changes nothing forward",
+          "[defocus][gradient]") {
+  torch::manual_seed(26);
+  model::NetOptions o;
+  o.bands = 4, o.base_width = 8, o.levels = 2, o.norm = NormKind::group, o.residual_spectral_wiener = true;
+  o.defocus_cost = DefocusCost::spectral, o.layer_depths_m = {0.5, 2.0}, o.depth_min_m = 0.4, o.depth_max_m = 2.5;
+  const torch::Tensor weights = torch::rand({4, 3}), a = torch::rand({4, 4}), mean = torch::rand({4}) * 0.3,
+                      omega = torch::rand({3, 4}), psf0 = torch::rand({4, 2, 9, 9});
+  const torch::Tensor cov = 1e-3 * (torch::matmul(a, a.t()) + 0.1 * torch::eye(4)), psf = psf0 / psf0.sum({2, 3}, true);
+  const torch::Tensor x = torch::rand({2, 3, 24, 20});
+  // The depth output's gradient with respect to the image, with the option off and on (same weights).
+  auto run = [&](bool graded) {
+    model::NetOptions p = o;
+    p.defocus_cost_gradient = graded;
+    torch::manual_seed(27);
+    model::HsdNet net(p, weights);
+    net->set_spectral_prior(mean, cov, 1e-5, omega);
+    net->set_band_psf(psf);
+    net->train();
+    const torch::Tensor xi = x.clone().requires_grad_(true);
+    const model::NetOutput out = net->forward(xi);
+    const torch::Tensor g = torch::autograd::grad({out.inv_depth.sum()}, {xi})[0];
+    return std::make_pair(out.inv_depth.detach(), g);
+  };
+  const auto [off_depth, off_grad] = run(false);
+  const auto [on_depth, on_grad] = run(true);
+  CHECK(torch::equal(off_depth, on_depth));  // the forward pass is the same
+  // The cost volume's path adds to the image's gradient.
+  const double diff = (on_grad - off_grad).abs().max().item<double>();
+  INFO("largest change of the image's gradient: " << diff << " (off: " << off_grad.abs().max().item<double>() << ")");
+  CHECK(diff > 1e-4 * off_grad.abs().max().item<double>());
+  CHECK(torch::isfinite(on_grad).all().item<bool>());
+  // Refused without the spectral cost volume, naming the key.
+  CHECK_THROWS_WITH(load_config(test::source_path("configs/quick.json"), {"model.defocus_cost_gradient=true"}),
+                    Catch::Contains("defocus_cost_gradient"));
+  CHECK(model::net_options(load_config(test::source_path("configs/quick.json"),
+                                       {"model.defocus_cost=\"spectral\"", "model.defocus_cost_gradient=true"}))
+            .defocus_cost_gradient);
 }
