@@ -439,8 +439,9 @@ TEST_CASE("defocus likelihood: model.defocus_cost_gradient lets the loss reach t
   CHECK(diff > 1e-4 * off_grad.abs().max().item<double>());
   CHECK(torch::isfinite(on_grad).all().item<bool>());
   // Refused without the spectral cost volume, naming the key.
-  CHECK_THROWS_WITH(load_config(test::source_path("configs/quick.json"), {"model.defocus_cost_gradient=true"}),
-                    Catch::Contains("defocus_cost_gradient"));
+  CHECK_THROWS_WITH(
+      load_config(test::source_path("configs/quick.json"), {"model.defocus_cost=\"none\"", "model.defocus_cost_gradient=true"}),
+      Catch::Contains("defocus_cost_gradient"));
   CHECK(model::net_options(load_config(test::source_path("configs/quick.json"),
                                        {"model.defocus_cost=\"spectral\"", "model.defocus_cost_gradient=true"}))
             .defocus_cost_gradient);
