@@ -254,19 +254,18 @@ torch::Tensor HsdNetImpl::preinverse(const torch::Tensor& image) const {
 }
 
 torch::Tensor HsdNetImpl::defocus_input(const torch::Tensor& image) const {
-  if (opt_.defocus_cost == DefocusCost::spectral && opt_.defocus_cost_gradient) {
-    // Differentiable in the image (not in the PSFs): the depth term reaches
-    // the DOE through the cost volume as through the image.
-    const torch::Tensor cost = spectral_reader_cost(image, kDefocusInputWindowPx);
-    return (cost - cost.mean(1, true)).to(image.scalar_type());
-  }
-  torch::NoGradGuard no_grad;
+  // With defocus_cost_gradient the spectral costs are differentiable in the
+  // image (never in the PSFs): the depth term reaches the DOE through them as
+  // through the image. Otherwise no gradient passes.
+  const bool graded = opt_.defocus_cost == DefocusCost::spectral && opt_.defocus_cost_gradient;
+  std::optional<torch::NoGradGuard> no_grad;
+  if (!graded) no_grad.emplace();
   torch::Tensor cost;
   if (opt_.defocus_cost == DefocusCost::grey) {
     TORCH_CHECK(preinverse_psf_.defined(), "HsdNet: the grey cost volume needs set_preinverse_psf first");
     cost = defocus_cost_volume(image.detach(), preinverse_psf_.detach(), DefocusModel());
   } else {
-    cost = spectral_reader_cost(image.detach(), kDefocusInputWindowPx);
+    cost = spectral_reader_cost(graded ? image : image.detach(), kDefocusInputWindowPx);
   }
   return (cost - cost.mean(1, true)).to(image.scalar_type());
 }
